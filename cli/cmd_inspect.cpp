@@ -1,0 +1,122 @@
+// `scanmesh inspect`: read a mesh and print its topology and quality report (text or JSON).
+// SPDX-License-Identifier: MIT
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "commands.hpp"
+#include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/analysis.hpp"
+
+namespace scanmesh::cli {
+namespace {
+
+struct InspectArgs {
+  std::string mesh;
+  bool json = false;
+};
+
+/// Six significant digits, as %g.
+std::string num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+std::string percent(double fraction) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.2f %%", 100.0 * fraction);
+  return buf;
+}
+
+nlohmann::json to_json(const recon::MeshReport& r) {
+  nlohmann::json j;
+  j["vertices"] = r.vertices;
+  j["referenced_vertices"] = r.referenced_vertices;
+  j["triangles"] = r.triangles;
+  j["degenerate_triangles"] = r.degenerate_triangles;
+  j["duplicate_triangles"] = r.duplicate_triangles;
+  j["edges"] = r.edges;
+  j["boundary_edges"] = r.boundary_edges;
+  j["non_manifold_edges"] = r.non_manifold_edges;
+  j["non_manifold_vertices"] = r.non_manifold_vertices;
+  j["inconsistent_edges"] = r.inconsistent_edges;
+  j["orientation_consistent"] = r.orientation_consistent;
+  j["boundary_loops"] = r.boundary_loops;
+  j["boundary_loop_lengths"] = r.boundary_loop_lengths;
+  j["components"] = r.components;
+  j["euler_characteristic"] = r.euler_characteristic;
+  j["genus"] = r.genus;
+  j["angle_min_deg"] = r.min_angle_deg;
+  j["angle_max_deg"] = r.max_angle_deg;
+  j["angle_mean_deg"] = r.mean_angle_deg;
+  j["frac_min_angle_below_10"] = r.frac_min_angle_below_10;
+  j["frac_min_angle_below_20"] = r.frac_min_angle_below_20;
+  j["mean_edge_length"] = r.mean_edge_length;
+  j["max_edge_length"] = r.max_edge_length;
+  j["signed_volume"] = r.signed_volume;
+  return j;
+}
+
+void print_text(const std::string& file, const recon::MeshReport& r) {
+  auto line = [](const char* label, const std::string& value) {
+    std::cout << std::left << std::setw(25) << label << value << "\n";
+  };
+  auto count = [](std::size_t n) { return std::to_string(n); };
+  line("mesh", file);
+  line("vertices", count(r.vertices) + " (" + count(r.referenced_vertices) + " referenced)");
+  line("triangles", count(r.triangles) + " (" + count(r.degenerate_triangles) + " degenerate, " +
+                        count(r.duplicate_triangles) + " duplicate)");
+  line("edges", count(r.edges) + " (" + count(r.boundary_edges) + " boundary)");
+  line("non-manifold edges", count(r.non_manifold_edges));
+  line("non-manifold vertices", count(r.non_manifold_vertices));
+  line("orientation", std::string(r.orientation_consistent ? "consistent" : "INCONSISTENT") + " (" +
+                          count(r.inconsistent_edges) + " inconsistent edges)");
+  std::string loops = count(r.boundary_loops);
+  if (!r.boundary_loop_lengths.empty()) {
+    constexpr std::size_t kShown = 12;
+    loops += " (edges:";
+    for (std::size_t i = 0; i < r.boundary_loop_lengths.size() && i < kShown; ++i) {
+      loops += " " + count(r.boundary_loop_lengths[i]);
+    }
+    if (r.boundary_loop_lengths.size() > kShown) loops += " ...";
+    loops += ")";
+  }
+  line("boundary loops", loops);
+  line("components", count(r.components));
+  line("euler characteristic", std::to_string(r.euler_characteristic));
+  line("genus", std::to_string(r.genus));
+  line("interior angles", "min " + num(r.min_angle_deg) + " deg, max " + num(r.max_angle_deg) +
+                              " deg, mean " + num(r.mean_angle_deg) + " deg");
+  line("min angle < 10 / 20 deg", percent(r.frac_min_angle_below_10) + " / " +
+                                      percent(r.frac_min_angle_below_20) + " of triangles");
+  line("edge length", "mean " + num(r.mean_edge_length) + ", max " + num(r.max_edge_length));
+  line("signed volume", num(r.signed_volume));
+}
+
+int run_inspect(const InspectArgs& args) {
+  const recon::Mesh mesh = meshio::read_mesh(args.mesh);
+  const recon::MeshReport report = recon::analyze(mesh);
+  if (args.json) {
+    std::cout << to_json(report).dump() << "\n";
+  } else {
+    print_text(args.mesh, report);
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_inspect_command(CLI::App& app, Runner& run) {
+  auto args = std::make_shared<InspectArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "inspect", "Print a mesh's topology (manifoldness, orientation, holes, genus) and quality");
+  cmd->add_option("MESH", args->mesh, "mesh file: .ply .stl .obj")->required();
+  cmd->add_flag("--json", args->json, "print one JSON object instead of the text summary");
+  cmd->callback([args, &run] { run = [args] { return run_inspect(*args); }; });
+}
+
+}  // namespace scanmesh::cli

@@ -1,0 +1,201 @@
+// `scanmesh reconstruct`: read point files, reconstruct a manifold mesh, write it.
+// SPDX-License-Identifier: MIT
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "scanmesh/common/error.hpp"
+#include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/reconstruct.hpp"
+
+namespace scanmesh::cli {
+namespace {
+
+struct ReconstructArgs {
+  std::vector<std::string> inputs;
+  std::string output;
+  std::string cube = "auto";
+  double min_angle_deg = 20;
+  std::string conf;
+  bool json = false;
+  bool ascii = false;
+  std::string outliers_file;
+};
+
+/// Parses --cube: "auto", "none" or a positive size in input units.
+void apply_cube(const std::string& text, recon::ReconstructOptions& o) {
+  if (text == "auto") {
+    o.cube_mode = recon::ReconstructOptions::CubeMode::kAuto;
+  } else if (text == "none") {
+    o.cube_mode = recon::ReconstructOptions::CubeMode::kNone;
+  } else {
+    std::size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(text, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != text.size() || !(v > 0) || !std::isfinite(v))
+      throw ConfigError("--cube must be 'auto', 'none' or a positive size, got '" + text + "'");
+    o.cube_mode = recon::ReconstructOptions::CubeMode::kFixed;
+    o.cube_mm = v;
+  }
+}
+
+/// Loads and merges every input (registered through the .conf when one is given).
+std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args) {
+  std::vector<recon::Vec3> all;
+  if (!args.conf.empty()) {
+    const auto entries = meshio::read_conf(args.conf);
+    std::map<std::string, const meshio::ConfEntry*> by_name;
+    for (const auto& e : entries) by_name[e.file.filename().string()] = &e;
+    std::vector<std::pair<std::filesystem::path, const meshio::ConfEntry*>> jobs;
+    if (args.inputs.empty()) {
+      for (const auto& e : entries) jobs.emplace_back(e.file, &e);
+    } else {
+      for (const auto& in : args.inputs) {
+        const std::filesystem::path p(in);
+        auto it = by_name.find(p.filename().string());
+        if (it == by_name.end())
+          throw ConfigError("input '" + in + "' is not listed in the registration file '" +
+                            args.conf + "'");
+        jobs.emplace_back(p, it->second);
+      }
+    }
+    for (const auto& [path, entry] : jobs) {
+      const recon::PointCloud c = meshio::read_points(path);
+      for (const auto& p : c.points) all.push_back(entry->to_world(p));
+    }
+  } else {
+    for (const auto& in : args.inputs) {
+      recon::PointCloud c = meshio::read_points(in);
+      all.insert(all.end(), c.points.begin(), c.points.end());
+    }
+  }
+  return all;
+}
+
+int run_reconstruct(const ReconstructArgs& args) {
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  recon::ReconstructOptions opt;
+  apply_cube(args.cube, opt);
+  opt.front.min_angle_deg = args.min_angle_deg;
+  opt.front.relaxed_min_angle_deg = std::min(opt.front.relaxed_min_angle_deg, args.min_angle_deg);
+  if (args.inputs.empty() && args.conf.empty())
+    throw ConfigError("no INPUT given (and no --conf to take the scans from)");
+  if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
+
+  const std::vector<recon::Vec3> points = load_inputs(args);
+  if (points.empty()) {
+    std::string names;
+    for (const auto& in : args.inputs) names += (names.empty() ? "" : ", ") + in;
+    throw InputError(names + ": no points in the input");
+  }
+  auto last = Clock::now();
+  std::map<std::string, double> seconds;
+  seconds["read"] = std::chrono::duration<double>(last - t0).count();
+  std::string current;
+  auto observer = [&](std::string_view stage) {
+    const auto now = Clock::now();
+    if (!current.empty()) seconds[current] += std::chrono::duration<double>(now - last).count();
+    last = now;
+    current = stage == "done" ? "" : std::string(stage);
+  };
+  recon::ReconstructResult res = recon::reconstruct(points, opt, observer);
+
+  auto t = Clock::now();
+  meshio::write_mesh(res.mesh, args.output, meshio::WriteOptions{args.ascii});
+  if (!args.outliers_file.empty()) meshio::write_points_xyz(res.outliers, args.outliers_file);
+  seconds["write"] = std::chrono::duration<double>(Clock::now() - t).count();
+  const double total = std::chrono::duration<double>(Clock::now() - t0).count();
+  const recon::MeshReport rep = recon::analyze(res.mesh);
+
+  if (args.json) {
+    nlohmann::json j;
+    j["input_points"] = res.input_points;
+    j["reduced_points"] = res.reduced_points;
+    j["vertices"] = res.mesh.vertices.size();
+    j["triangles"] = res.mesh.triangles.size();
+    j["boundary_loops"] = rep.boundary_loops;
+    j["boundary_loop_lengths"] = rep.boundary_loop_lengths;
+    j["components"] = rep.components;
+    j["outliers"] = res.outliers.size();
+    j["non_manifold_edges"] = rep.non_manifold_edges;
+    j["non_manifold_vertices"] = rep.non_manifold_vertices;
+    j["orientation_consistent"] = rep.orientation_consistent;
+    j["genus"] = rep.genus;
+    j["cube"] = res.cube_mm;
+    j["spacing"] = {{"nearest", res.spacing.nearest_mm},
+                    {"cross", res.spacing.cross_mm},
+                    {"thickness", res.spacing.thickness_mm}};
+    j["seeds"] = res.seeds;
+    j["relaxed_triangles"] = res.relaxed_triangles;
+    j["filled_gaps"] = res.filled_gaps;
+    j["removed_fan_triangles"] = res.removed_fan_triangles;
+    j["output"] = args.output;
+    j["seconds_total"] = total;
+    j["seconds"] = seconds;
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << std::fixed << std::setprecision(3);
+    std::cout << "input points     " << res.input_points << "\n"
+              << "cube             " << (res.cube_mm > 0 ? std::to_string(res.cube_mm) : "none")
+              << "\n"
+              << "reduced points   " << res.reduced_points << "\n"
+              << "vertices         " << res.mesh.vertices.size() << "\n"
+              << "triangles        " << res.mesh.triangles.size() << "\n"
+              << "boundary loops   " << rep.boundary_loops << "\n"
+              << "components       " << rep.components << "\n"
+              << "outliers         " << res.outliers.size() << "\n"
+              << "manifold         "
+              << (rep.non_manifold_edges == 0 && rep.non_manifold_vertices == 0 ? "yes" : "NO")
+              << ", orientation " << (rep.orientation_consistent ? "consistent" : "INCONSISTENT")
+              << "\n"
+              << "written          " << args.output << "\n"
+              << "seconds          " << total << " (";
+    bool first = true;
+    for (const auto& [k, v] : seconds) {
+      std::cout << (first ? "" : ", ") << k << " " << v;
+      first = false;
+    }
+    std::cout << ")\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_reconstruct_command(CLI::App& app, Runner& run) {
+  auto args = std::make_shared<ReconstructArgs>();
+  CLI::App* cmd = app.add_subcommand("reconstruct", "Reconstruct a triangle mesh from points");
+  cmd->add_option("INPUT", args->inputs,
+                  "point files: .xyz .txt .csv .asc .ply .stl .obj (merged)");
+  cmd->add_option("-o,--output", args->output, "output mesh: .stl .ply .obj")->required();
+  cmd->add_option("--cube", args->cube,
+                  "cube reduction edge in input units, 'auto' (from the measured spacing) or "
+                  "'none'")
+      ->capture_default_str();
+  cmd->add_option("--min-angle", args->min_angle_deg, "smallest interior angle, degrees")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 59.0));
+  cmd->add_option("--conf", args->conf,
+                  "scanalyze registration file (bmesh FILE tx ty tz qx qy qz qw); without INPUT "
+                  "every listed scan is used");
+  cmd->add_flag("--json", args->json, "print one JSON object with the figures");
+  cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
+  cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");
+  cmd->callback([args, &run] { run = [args] { return run_reconstruct(*args); }; });
+}
+
+}  // namespace scanmesh::cli

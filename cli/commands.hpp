@@ -1,0 +1,25 @@
+// Subcommands of the `scanmesh` tool. Each registers itself on the CLI11 app and sets `run`.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace scanmesh::cli {
+
+/// Exit statuses shared by every subcommand (part of the command's interface).
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitUsage = 2,   ///< bad flags or arguments
+  kExitInput = 3,   ///< unreadable or malformed input
+  kExitOutput = 4,  ///< cannot write output
+  kExitDevice = 5,  ///< device did not answer
+};
+
+using Runner = std::function<int()>;
+
+void add_reconstruct_command(CLI::App& app, Runner& run);
+void add_inspect_command(CLI::App& app, Runner& run);
+void add_deviation_command(CLI::App& app, Runner& run);
+
+}  // namespace scanmesh::cli

@@ -1,0 +1,58 @@
+// Reading point clouds and meshes, writing meshes. Every reader reports malformed input as
+// scanmesh::InputError naming the file, the line (text) or byte offset (binary) and the problem.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::meshio {
+
+/// Reads the points of any supported file, chosen by extension (case-insensitive):
+/// .xyz .txt .csv .asc (x y z per line; separators space, tab, comma, semicolon; extra columns and
+/// '#' comments ignored), .ply (vertices), .stl (unique vertices), .obj ('v' lines).
+/// Throws InputError (unreadable, malformed, unknown extension).
+recon::PointCloud read_points(const std::filesystem::path& file);
+
+/// Reads a triangle mesh: .ply (face lists, triangulated as fans; tristrips with -1 restarts),
+/// .stl (ascii or binary; coincident vertices merged exactly), .obj (faces with v/vt/vn forms,
+/// negative indices, polygons triangulated as fans). Throws InputError.
+recon::Mesh read_mesh(const std::filesystem::path& file);
+
+/// In-memory parsers used by the file readers, the tests and the fuzz targets. `name` is used in
+/// error messages only.
+recon::PointCloud parse_xyz(std::string_view text, std::string_view name);
+recon::Mesh parse_ply(std::string_view bytes, std::string_view name);  // vertices + faces
+recon::Mesh parse_stl(std::string_view bytes, std::string_view name);
+recon::Mesh parse_obj(std::string_view text, std::string_view name);
+
+/// One entry of a scanalyze registration file: `bmesh FILE tx ty tz qx qy qz qw`.
+struct ConfEntry {
+  std::filesystem::path file;                 ///< resolved against the .conf's directory
+  Eigen::Vector3d translation{0, 0, 0};       ///< t
+  Eigen::Vector4d quaternion{0, 0, 0, 1};     ///< (x, y, z, w) as in the file
+  /// world = R^T p + t, with R the rotation matrix of the unit quaternion.
+  [[nodiscard]] Eigen::Vector3d to_world(const Eigen::Vector3d& p) const;
+};
+std::vector<ConfEntry> parse_conf(std::string_view text, std::string_view name,
+                                  const std::filesystem::path& base_dir);
+std::vector<ConfEntry> read_conf(const std::filesystem::path& file);
+
+struct WriteOptions {
+  bool ascii_stl = false;  ///< STL only: text instead of binary
+};
+
+/// Writes by extension: .stl (binary unless ascii_stl), .ply (binary little endian), .obj.
+/// Writes to a temporary file beside the target and renames it into place, so no partial file
+/// is ever left under the final name. Throws OutputError naming the file and the OS error.
+void write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
+                const WriteOptions& options = {});
+
+/// Writes points as "x y z\n" text (%.9g), atomically like write_mesh.
+void write_points_xyz(const std::vector<recon::Vec3>& points, const std::filesystem::path& file);
+
+}  // namespace scanmesh::meshio

@@ -1,0 +1,40 @@
+// Topology and quality report of a triangle mesh (what `scanmesh inspect` prints and what the
+// tests assert on). Pure: no I/O.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::recon {
+
+struct MeshReport {
+  std::size_t vertices = 0;            ///< vertices in the vertex array
+  std::size_t referenced_vertices = 0; ///< vertices used by at least one triangle
+  std::size_t triangles = 0;
+  std::size_t degenerate_triangles = 0;  ///< repeated index or zero area
+  std::size_t duplicate_triangles = 0;   ///< same vertex set as an earlier triangle
+  std::size_t edges = 0;
+  std::size_t boundary_edges = 0;        ///< edges in exactly one triangle
+  std::size_t non_manifold_edges = 0;    ///< edges in three or more triangles
+  std::size_t non_manifold_vertices = 0; ///< vertices whose triangles form more than one fan
+  std::size_t inconsistent_edges = 0;    ///< manifold edges used twice in the same direction
+  bool orientation_consistent = true;    ///< inconsistent_edges == 0
+  std::size_t boundary_loops = 0;
+  std::vector<std::size_t> boundary_loop_lengths;  ///< edges per loop, descending
+  std::size_t components = 0;            ///< edge-connected components of triangles
+  long euler_characteristic = 0;         ///< V - E + F over referenced vertices
+  /// Genus from chi = 2c - 2g - b (c components, b boundary loops); exact for manifold meshes.
+  long genus = 0;
+  double min_angle_deg = 0, max_angle_deg = 0, mean_angle_deg = 0;
+  /// Fraction of triangles whose smallest interior angle is below 10 and 20 degrees.
+  double frac_min_angle_below_10 = 0, frac_min_angle_below_20 = 0;
+  double mean_edge_length = 0, max_edge_length = 0;
+  double signed_volume = 0;              ///< > 0 when closed and outward oriented
+};
+
+MeshReport analyze(const Mesh& mesh);
+
+}  // namespace scanmesh::recon

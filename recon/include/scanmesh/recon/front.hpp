@@ -1,0 +1,69 @@
+// Advancing-front (boundary extension) triangulation of a reduced, oriented point set.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "scanmesh/recon/grid.hpp"
+#include "scanmesh/recon/mesh.hpp"
+#include "scanmesh/recon/normals.hpp"
+
+namespace scanmesh::recon {
+
+/// Explicit per-vertex state, exposed for tests (../shared/STYLE.md §7).
+enum class VertexState : std::uint8_t {
+  kFree,      ///< not yet in the mesh
+  kFront,     ///< in the mesh with an open fan (on the advancing front)
+  kDone,      ///< interior: its fan is closed
+  kBoundary,  ///< in the mesh, on a boundary loop that stays open (hole or scan border)
+  kOutlier,   ///< never reachable by the front: reported, not meshed
+};
+
+struct FrontOptions {
+  double min_angle_deg = 20;  ///< smallest interior angle of a new triangle (reference: 20)
+  /// Smallest dihedral angle between a new triangle and the one across its front edge
+  /// (reference: 90, no fold-back). 180 is flat.
+  double min_dihedral_deg = 90;
+  /// Candidate radius as a multiple of the local spacing (mean distance to 6 neighbours) of the
+  /// edge's end points and the candidate.
+  double radius_factor = 2.0;
+  /// Second chance for edges nothing fitted: larger radius, smaller angle bound.
+  double relaxed_radius_factor = 2.6;
+  double relaxed_min_angle_deg = 8;
+  /// Relaxed dihedral bound: right-angle CAD edges sampled only on the feature lines need
+  /// triangles meeting at 90 degrees exactly.
+  double relaxed_min_dihedral_deg = 60;
+  /// Largest angle between a new triangle's normal and the PCA normal of its new vertex.
+  double max_normal_deviation_deg = 60;
+  int max_valence = 16;  ///< edges per vertex
+  /// Boundary loops with at most this many edges and a perimeter of at most
+  /// `fill_perimeter_factor` local spacings are sampling gaps, closed at the end.
+  std::size_t fill_max_edges = 8;
+  double fill_perimeter_factor = 10.0;
+  [[nodiscard]] std::vector<std::string> validate() const;
+};
+
+struct FrontResult {
+  std::vector<Triangle> triangles;      ///< indices into the point array, consistently oriented
+  std::vector<VertexState> state;       ///< final state of every point
+  std::vector<std::uint32_t> outliers;  ///< points the front never reached
+  std::size_t seeds = 0;                ///< seed triangles placed (one per component grown)
+  std::size_t relaxed_triangles = 0;    ///< triangles placed by the relaxed second pass
+  std::size_t filled_gaps = 0;          ///< small loops closed at the end
+  std::size_t removed_fan_triangles = 0;  ///< triangles dropped to keep vertices manifold
+  std::size_t flipped_components = 0;
+  std::size_t edge_evaluations = 0;  ///< front edges examined (cost counter)
+  std::size_t points_scanned = 0;    ///< grid points visited while gathering candidates
+  std::size_t seed_attempts = 0;
+};
+
+/// Triangulates `points` (with `frames` from estimate_frames and `grid` indexing the points
+/// with a cell of about 2.5x the median local spacing). Deterministic.
+FrontResult advance_front(std::span<const Vec3> points, const LocalFrames& frames,
+                          const PointGrid& grid, const FrontOptions& options = {});
+
+}  // namespace scanmesh::recon

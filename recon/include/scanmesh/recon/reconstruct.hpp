@@ -1,0 +1,51 @@
+// The whole point-cloud-to-mesh pipeline: validation, spacing, cube reduction, frames,
+// advancing front, output mesh. Pure and deterministic; stage timing is left to the caller
+// through the observer (the core reads no clock).
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "scanmesh/recon/front.hpp"
+#include "scanmesh/recon/mesh.hpp"
+#include "scanmesh/recon/reduce.hpp"
+
+namespace scanmesh::recon {
+
+struct ReconstructOptions {
+  enum class CubeMode { kAuto, kFixed, kNone };
+  CubeMode cube_mode = CubeMode::kAuto;  ///< auto: derived from the measured spacing
+  double cube_mm = 0;                    ///< cube edge when kFixed (input units), > 0
+  FrontOptions front;
+  NormalOptions normals;
+  /// Reports every bad field at once (empty when valid).
+  [[nodiscard]] std::vector<std::string> validate() const;
+};
+
+struct ReconstructResult {
+  Mesh mesh;  ///< only vertices used by triangles; consistently oriented
+  std::size_t input_points = 0;
+  std::size_t reduced_points = 0;  ///< points handed to the front
+  double cube_mm = 0;              ///< cube edge used (0 = none)
+  SpacingEstimate spacing;
+  std::vector<Vec3> outliers;      ///< reduced points the front never reached
+  std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
+  std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
+};
+
+/// Called with the name of each stage when it starts ("reduce", "normals", "front", "output")
+/// and with "done" at the end.
+using StageObserver = std::function<void(std::string_view stage)>;
+
+/// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,
+/// fewer than 3 distinct points, non-finite coordinates, all points collinear.
+ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOptions& options = {},
+                              const StageObserver& observer = {});
+
+}  // namespace scanmesh::recon

@@ -1,0 +1,40 @@
+// Sampling statistics of a point cloud and the reference method's cube reduction.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::recon {
+
+/// Measured sampling of a cloud, from the neighbourhoods of an evenly spread subset of points.
+struct SpacingEstimate {
+  double nearest_mm = 0;  ///< median distance to the nearest neighbour
+  /// Median distance to the nearest neighbour lying more than 45 degrees away from the direction
+  /// of the nearest one: the spacing across scan lines of a raster scan (equals about
+  /// nearest_mm for isotropic sampling, the line spacing for anisotropic raster scans).
+  double cross_mm = 0;
+  /// Median RMS distance of the 16 nearest neighbours from their best-fit plane: the thickness
+  /// of the sampled shell (noise, registration error of merged views).
+  double thickness_mm = 0;
+  std::size_t sampled = 0;  ///< points the estimate is based on
+};
+
+/// Estimates the sampling from up to `max_samples` evenly spread points. Deterministic.
+SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_samples = 4000);
+
+/// Cube edge derived from the measured sampling: large enough to make raster scans about
+/// isotropic and to collapse a noisy multi-view shell into one layer, close to the spacing on
+/// clean evenly sampled clouds.
+double auto_cube_size(const SpacingEstimate& s);
+
+/// Cube reduction as in the reference method: space is cut into cubes of edge `cube`; in each
+/// occupied cube the point nearest to the cube centre is kept. Returns the kept indices in
+/// ascending order. Deterministic (ties broken by the lower index).
+std::vector<std::uint32_t> cube_reduce(std::span<const Vec3> points, double cube);
+
+}  // namespace scanmesh::recon

@@ -1,0 +1,822 @@
+// Advancing front (boundary extension) over an oriented point set.
+//
+// The front is a set of directed loops of edges; the mesh lies on the left of every front edge
+// (seen from the side its normals point to). A new triangle on front edge a->b with apex p is
+// (b, a, p): it inherits the orientation of the triangle behind a->b, so every component is
+// consistently oriented by construction. A vertex's gaps (open sectors of its fan) are its
+// outgoing front edges; vertices with two gaps exist only transiently and are repaired at the
+// end so that the output is vertex-manifold.
+// SPDX-License-Identifier: MIT
+#include "scanmesh/recon/front.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cassert>
+#include <cmath>
+#include <numbers>
+#include <queue>
+
+namespace scanmesh::recon {
+namespace {
+
+constexpr std::uint32_t kNone = 0xffffffffu;
+constexpr std::uint32_t kInterior = 0xfffffffeu;  // edge-map value: edge of two triangles
+constexpr double kPi = std::numbers::pi;
+
+/// Undirected edge -> front edge id (when the edge is on the front) or kInterior.
+class EdgeMap {
+ public:
+  explicit EdgeMap(std::size_t expected) { rehash(std::bit_ceil(std::max<std::size_t>(64, expected * 2))); }
+  std::uint32_t* find(std::uint32_t u, std::uint32_t v) {
+    const std::uint64_t k = key(u, v);
+    std::size_t h = hash(k);
+    while (vals_[h] != kNone) {
+      if (keys_[h] == k) return &vals_[h];
+      h = (h + 1) & mask_;
+    }
+    return nullptr;
+  }
+  void insert(std::uint32_t u, std::uint32_t v, std::uint32_t val) {
+    if ((size_ + 1) * 10 > keys_.size() * 7) rehash(keys_.size() * 2);
+    const std::uint64_t k = key(u, v);
+    std::size_t h = hash(k);
+    while (vals_[h] != kNone) {
+      if (keys_[h] == k) {
+        vals_[h] = val;
+        return;
+      }
+      h = (h + 1) & mask_;
+    }
+    keys_[h] = k;
+    vals_[h] = val;
+    ++size_;
+  }
+
+ private:
+  static std::uint64_t key(std::uint32_t u, std::uint32_t v) {
+    return u < v ? (std::uint64_t{u} << 32) | v : (std::uint64_t{v} << 32) | u;
+  }
+  [[nodiscard]] std::size_t hash(std::uint64_t k) const {
+    return static_cast<std::size_t>((k * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+  void rehash(std::size_t cap) {
+    std::vector<std::uint64_t> old_keys = std::move(keys_);
+    std::vector<std::uint32_t> old_vals = std::move(vals_);
+    keys_.assign(cap, 0);
+    vals_.assign(cap, kNone);
+    mask_ = cap - 1;
+    shift_ = 64 - std::countr_zero(cap);
+    for (std::size_t i = 0; i < old_keys.size(); ++i) {
+      if (old_vals[i] == kNone) continue;
+      std::size_t h = hash(old_keys[i]);
+      while (vals_[h] != kNone) h = (h + 1) & mask_;
+      keys_[h] = old_keys[i];
+      vals_[h] = old_vals[i];
+    }
+  }
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> vals_;
+  std::size_t mask_ = 0, size_ = 0;
+  int shift_ = 63;
+};
+
+struct FrontEdge {
+  std::uint32_t a, b;      // directed a -> b, mesh on the left
+  std::uint32_t opp;       // third vertex of the triangle behind the edge
+  std::uint32_t prev, next;  // neighbours along the front loop
+  std::uint32_t next_out;    // next outgoing front edge of vertex a
+  std::uint32_t stamp;       // bumped on every (re)queue; stale heap entries are skipped
+  bool alive;
+  bool failed;               // no candidate fitted, even relaxed
+};
+
+struct QueueItem {
+  float key;
+  std::uint32_t edge, stamp;
+  bool operator>(const QueueItem& o) const {
+    return key != o.key ? key > o.key : edge > o.edge;
+  }
+};
+
+/// Counter-clockwise angle from u to w around n, in [0, 2 pi).
+double ccw_angle(const Vec3& u, const Vec3& w, const Vec3& n) {
+  const Vec3 up = u - u.dot(n) * n, wp = w - w.dot(n) * n;
+  double ang = std::atan2(n.dot(up.cross(wp)), up.dot(wp));
+  if (ang < 0) ang += 2 * kPi;
+  return ang;
+}
+
+/// Orientation of (p, q, r) in the plane with normal n: > 0 counter-clockwise.
+double orient(const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& n) {
+  return n.dot((q - p).cross(r - p));
+}
+
+bool segments_cross(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2,
+                    const Vec3& n) {
+  const double d1 = orient(q1, q2, p1, n), d2 = orient(q1, q2, p2, n);
+  const double d3 = orient(p1, p2, q1, n), d4 = orient(p1, p2, q2, n);
+  return ((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0));
+}
+
+class Builder {
+ public:
+  Builder(std::span<const Vec3> pts, const LocalFrames& frames, const PointGrid& grid,
+          const FrontOptions& opt)
+      : p_(pts), f_(frames), grid_(grid), opt_(opt), edges_map_(pts.size() * 3) {
+    const std::size_t n = pts.size();
+    state_.assign(n, VertexState::kFree);
+    head_out_.assign(n, kNone);
+    valence_.assign(n, 0);
+    tris_.reserve(n * 2 + 16);
+  }
+
+  FrontResult run();
+
+ private:
+  struct Candidate {
+    double score;
+    std::uint32_t p;
+  };
+  struct Mode {
+    double radius_factor, cos_min_angle, cos_dihedral;
+  };
+
+  // --- front bookkeeping -------------------------------------------------------------------
+  std::uint32_t new_edge(std::uint32_t a, std::uint32_t b, std::uint32_t opp) {
+    std::uint32_t id;
+    if (!free_edges_.empty()) {
+      id = free_edges_.back();
+      free_edges_.pop_back();
+    } else {
+      id = static_cast<std::uint32_t>(edges_.size());
+      edges_.emplace_back();
+    }
+    FrontEdge& e = edges_[id];
+    e = FrontEdge{a, b, opp, kNone, kNone, head_out_[a], 0, true, false};
+    head_out_[a] = id;
+    edges_map_.insert(a, b, id);
+    return id;
+  }
+  void kill_edge(std::uint32_t id) {
+    FrontEdge& e = edges_[id];
+    // unlink from a's outgoing list
+    std::uint32_t* link = &head_out_[e.a];
+    while (*link != id) link = &edges_[*link].next_out;
+    *link = e.next_out;
+    e.alive = false;
+    ++e.stamp;
+    free_edges_.push_back(id);
+  }
+  [[nodiscard]] std::size_t gaps(std::uint32_t v) const {
+    std::size_t g = 0;
+    for (std::uint32_t e = head_out_[v]; e != kNone; e = edges_[e].next_out) ++g;
+    return g;
+  }
+  void update_state(std::uint32_t v) {
+    state_[v] = head_out_[v] == kNone ? VertexState::kDone : VertexState::kFront;
+  }
+  [[nodiscard]] Vec3 tri_normal(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
+    return (p_[b] - p_[a]).cross(p_[c] - p_[a]);
+  }
+  [[nodiscard]] Vec3 edge_normal(const FrontEdge& e) const {
+    return tri_normal(e.a, e.b, e.opp).normalized();
+  }
+  /// PCA normal of v turned to the side of `ref`.
+  [[nodiscard]] Vec3 vnormal(std::uint32_t v, const Vec3& ref) const {
+    Vec3 n = f_.normal[v].cast<double>();
+    return n.dot(ref) < 0 ? -n : n;
+  }
+  [[nodiscard]] double spacing(std::uint32_t v) const { return f_.spacing[v]; }
+
+  /// Unmeshed angle at the end vertex b of edge e (between e and its successor).
+  [[nodiscard]] double front_angle_at_end(std::uint32_t eid) const {
+    const FrontEdge& e = edges_[eid];
+    const FrontEdge& n = edges_[e.next];
+    const Vec3 nb = vnormal(e.b, edge_normal(e));
+    return ccw_angle(p_[e.a] - p_[e.b], p_[n.b] - p_[e.b], nb);
+  }
+  void push(std::uint32_t eid) {
+    FrontEdge& e = edges_[eid];
+    if (!e.alive) return;
+    ++e.stamp;
+    const double ang = std::min(front_angle_at_end(eid), front_angle_at_end(e.prev));
+    const double deg = ang * 180 / kPi;
+    const float key = deg < 120 ? static_cast<float>(deg) : static_cast<float>(1000.0 + seq_++);
+    queue_.push(QueueItem{key, eid, e.stamp});
+  }
+
+  /// Debug check of the front invariants: loops closed and linked both ways, out-lists and the
+  /// edge map agree with the alive edges. O(front size): debug builds run it after every step.
+  void check_front() const {
+#ifndef NDEBUG
+    for (std::uint32_t id = 0; id < edges_.size(); ++id) {
+      const FrontEdge& e = edges_[id];
+      if (!e.alive) continue;
+      assert(edges_[e.next].alive && edges_[e.prev].alive);
+      assert(edges_[e.next].prev == id && edges_[e.prev].next == id);
+      assert(edges_[e.next].a == e.b);
+      bool listed = false;
+      for (std::uint32_t o = head_out_[e.a]; o != kNone; o = edges_[o].next_out) listed |= o == id;
+      assert(listed);
+      assert(*const_cast<EdgeMap&>(edges_map_).find(e.a, e.b) == id);
+      (void)listed;
+    }
+#endif
+  }
+
+  // --- growth --------------------------------------------------------------------------------
+  bool try_seed(std::uint32_t s);
+  bool process(std::uint32_t eid, const Mode& mode);
+  bool valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius);
+  void add_triangle(std::uint32_t eid, std::uint32_t p);
+  void grow();
+  void fill_small_loops();
+  void repair_fans();
+  void orient_components();
+
+  std::span<const Vec3> p_;
+  const LocalFrames& f_;
+  const PointGrid& grid_;
+  const FrontOptions& opt_;
+  std::vector<VertexState> state_;
+  std::vector<std::uint32_t> head_out_;
+  std::vector<std::uint8_t> valence_;
+  std::vector<FrontEdge> edges_;
+  std::vector<std::uint32_t> free_edges_;
+  EdgeMap edges_map_;
+  std::vector<Triangle> tris_;
+  std::priority_queue<QueueItem, std::vector<QueueItem>, std::greater<>> queue_;
+  std::vector<std::uint32_t> deferred_;
+  double seq_ = 0;
+#ifndef NDEBUG
+  bool check_every_step_ = true;
+#else
+  bool check_every_step_ = false;
+#endif
+  // scratch buffers reused by every query (no allocation on the hot path once warmed up)
+  std::vector<Candidate> cand_;
+  std::vector<std::uint32_t> near_front_;
+  FrontResult res_;
+};
+
+bool Builder::try_seed(std::uint32_t s) {
+  const Vec3& ps = p_[s];
+  const double ls = spacing(s);
+  if (!(ls > 0)) return false;
+  ++res_.seed_attempts;
+  const double r = 2.5 * ls;
+  std::vector<std::pair<double, std::uint32_t>> nb;
+  bool near_mesh = false;
+  grid_.for_each_near(ps, grid_.ring_for(r), [&](std::uint32_t j) {
+    if (j == s) return;
+    const double d2 = (p_[j] - ps).squaredNorm();
+    if (d2 > r * r) return;
+    if (state_[j] != VertexState::kFree && state_[j] != VertexState::kOutlier) near_mesh = true;
+    if (state_[j] == VertexState::kFree && d2 > 0) nb.emplace_back(d2, j);
+  });
+  if (near_mesh || nb.size() < 2) return false;
+  std::sort(nb.begin(), nb.end());
+  if (nb.size() > 10) nb.resize(10);
+  const Vec3 ns = f_.normal[s].cast<double>();
+  const double cos_seed = std::cos(30.0 * kPi / 180);
+  for (std::size_t i = 0; i < nb.size(); ++i) {
+    for (std::size_t j = i + 1; j < nb.size(); ++j) {
+      std::uint32_t a = nb[i].second, b = nb[j].second;
+      Vec3 n = tri_normal(s, a, b);
+      const double len = n.norm();
+      if (len == 0) continue;
+      n /= len;
+      if (std::abs(n.dot(ns)) < 0.9) continue;
+      if (n.dot(ns) < 0) {
+        std::swap(a, b);
+        n = -n;
+      }
+      // all angles >= 30 degrees
+      const Vec3 q[3] = {ps, p_[a], p_[b]};
+      bool ok = true;
+      for (int k = 0; k < 3 && ok; ++k) {
+        const Vec3 u = (q[(k + 1) % 3] - q[k]).normalized(), w = (q[(k + 2) % 3] - q[k]).normalized();
+        if (u.dot(w) > cos_seed) ok = false;
+      }
+      if (!ok) continue;
+      if (std::abs(f_.normal[a].cast<double>().dot(n)) < 0.8 ||
+          std::abs(f_.normal[b].cast<double>().dot(n)) < 0.8)
+        continue;
+      // No other neighbour inside the triangle (projected): the seed is a Delaunay-like face.
+      for (const auto& [d2, m] : nb) {
+        if (m == a || m == b) continue;
+        const Vec3& pm = p_[m];
+        if (orient(ps, p_[a], pm, n) > 0 && orient(p_[a], p_[b], pm, n) > 0 &&
+            orient(p_[b], ps, pm, n) > 0) {
+          ok = false;
+          break;
+        }
+      }
+      if (!ok) continue;
+      tris_.push_back({s, a, b});
+      const std::uint32_t e0 = new_edge(s, a, b), e1 = new_edge(a, b, s), e2 = new_edge(b, s, a);
+      edges_[e0].next = e1;
+      edges_[e1].next = e2;
+      edges_[e2].next = e0;
+      edges_[e0].prev = e2;
+      edges_[e1].prev = e0;
+      edges_[e2].prev = e1;
+      for (std::uint32_t v : {s, a, b}) {
+        valence_[v] = 2;
+        state_[v] = VertexState::kFront;
+      }
+      push(e0);
+      push(e1);
+      push(e2);
+      ++res_.seeds;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius) {
+  const FrontEdge& e = edges_[eid];
+  const std::uint32_t a = e.a, b = e.b;
+  const Vec3 &pa = p_[a], &pb = p_[b], &pp = p_[p];
+  // The new vertex's own surface normal must agree with the triangle.
+  if (std::abs(f_.normal[p].cast<double>().dot(n1)) <
+      std::cos(opt_.max_normal_deviation_deg * kPi / 180))
+    return false;
+  // Existing edges: only the adjacent front edges may be closed.
+  bool close_a = false, close_b = false;
+  if (const std::uint32_t* v = edges_map_.find(a, p)) {
+    if (*v != e.prev || edges_[*v].a != p) return false;
+    close_a = true;
+  }
+  if (const std::uint32_t* v = edges_map_.find(p, b)) {
+    if (*v != e.next || edges_[*v].b != p) return false;
+    close_b = true;
+  }
+  if (!close_a && valence_[a] >= opt_.max_valence) return false;
+  if (!close_b && valence_[b] >= opt_.max_valence) return false;
+  if (!close_a && !close_b && valence_[p] + 2 > opt_.max_valence) return false;
+  // p must lie in the open sectors at a and at b.
+  if (!close_a) {
+    const FrontEdge& pe = edges_[e.prev];
+    const Vec3 na = vnormal(a, n1);
+    const double wedge = ccw_angle(p_[pe.a] - pa, pb - pa, na);
+    const double ang = ccw_angle(p_[pe.a] - pa, pp - pa, na);
+    if (!(ang > 0 && ang < wedge)) return false;
+  }
+  if (!close_b) {
+    const FrontEdge& ne = edges_[e.next];
+    const Vec3 nb = vnormal(b, n1);
+    const double wedge = ccw_angle(pa - pb, p_[ne.b] - pb, nb);
+    const double ang = ccw_angle(pa - pb, pp - pb, nb);
+    if (!(ang > 0 && ang < wedge)) return false;
+  }
+  const bool p_on_front = state_[p] == VertexState::kFront;
+  if (p_on_front && !close_a && !close_b) {
+    // Joining another part of the front: p must have a single open sector containing the new
+    // triangle's corner (b then a, counter-clockwise).
+    const std::uint32_t fo = head_out_[p];
+    if (fo == kNone || edges_[fo].next_out != kNone) return false;
+    const FrontEdge& out = edges_[fo];
+    const FrontEdge& in = edges_[out.prev];
+    const Vec3 np = vnormal(p, n1);
+    const Vec3 r = p_[in.a] - pp;
+    const double wedge = ccw_angle(r, p_[out.b] - pp, np);
+    const double ab = ccw_angle(r, pb - pp, np), aa = ccw_angle(r, pa - pp, np);
+    if (!(ab > 0 && ab < aa && aa < wedge)) return false;
+  }
+  // The new edges must not cross nearby front edges, and no front vertex may lie inside the
+  // new triangle (both seen in the triangle's plane, within a band around it).
+  const double band = 0.5 * radius;
+  for (std::uint32_t v : near_front_) {
+    if (state_[v] != VertexState::kFront) continue;
+    const double hv = std::abs((p_[v] - pa).dot(n1));
+    if (v != a && v != b && v != p && hv < band && orient(pb, pa, p_[v], n1) > 0 &&
+        orient(pa, pp, p_[v], n1) > 0 && orient(pp, pb, p_[v], n1) > 0)
+      return false;
+    for (std::uint32_t fe = head_out_[v]; fe != kNone; fe = edges_[fe].next_out) {
+      const FrontEdge& g = edges_[fe];
+      if (fe == eid) continue;
+      const double hw = std::abs((p_[g.b] - pa).dot(n1));
+      if (std::min(hv, hw) > band) continue;
+      // The other side of a thin wall faces away: its front cannot collide with this one.
+      if (tri_normal(g.a, g.b, g.opp).dot(n1) < 0) continue;
+      if (!close_a && g.a != a && g.b != a && g.a != p && g.b != p &&
+          segments_cross(pa, pp, p_[g.a], p_[g.b], n1))
+        return false;
+      if (!close_b && g.a != b && g.b != b && g.a != p && g.b != p &&
+          segments_cross(pp, pb, p_[g.a], p_[g.b], n1))
+        return false;
+    }
+  }
+  return true;
+}
+
+bool Builder::process(std::uint32_t eid, const Mode& mode) {
+  const FrontEdge& e = edges_[eid];
+  const std::uint32_t a = e.a, b = e.b, x = e.opp;
+  const Vec3 &pa = p_[a], &pb = p_[b];
+  const Vec3 n0 = edge_normal(e);
+  const Vec3 mid = 0.5 * (pa + pb);
+  const double lab = (pb - pa).norm();
+  const double base = std::max(spacing(a), spacing(b));
+  const double gather = mode.radius_factor * base * 1.2;
+  cand_.clear();
+  near_front_.clear();
+  ++res_.edge_evaluations;
+  grid_.for_each_near(mid, grid_.ring_for(gather + 0.5 * lab), [&](std::uint32_t j) {
+    ++res_.points_scanned;
+    const VertexState st = state_[j];
+    if (st == VertexState::kFront) near_front_.push_back(j);
+    if (j == a || j == b || j == x) return;
+    if (st != VertexState::kFree && st != VertexState::kFront) return;
+    const Vec3& pj = p_[j];
+    const double r = std::min(gather, mode.radius_factor * std::max<double>(base, spacing(j)));
+    const Vec3 ua = pj - pa, ub = pj - pb;
+    const double la2 = ua.squaredNorm(), lb2 = ub.squaredNorm();
+    if (la2 > r * r || lb2 > r * r || la2 == 0 || lb2 == 0) return;
+    // new triangle (b, a, j)
+    Vec3 n1 = (pa - pb).cross(pj - pb);
+    const double nl = n1.norm();
+    if (nl == 0) return;
+    n1 /= nl;
+    if (n1.dot(n0) <= mode.cos_dihedral) return;
+    // interior angles via cosines: at a, at b, at j
+    const double la = std::sqrt(la2), lb = std::sqrt(lb2);
+    const Vec3 ab = pb - pa;
+    const double cos_a = ab.dot(ua) / (lab * la);
+    const double cos_b = -ab.dot(ub) / (lab * lb);
+    const double cos_j = ua.dot(ub) / (la * lb);
+    if (std::max({cos_a, cos_b, cos_j}) > mode.cos_min_angle) return;
+    // Delaunay-like choice: the point that sees the edge under the largest angle, with a
+    // preference for continuing the surface smoothly.
+    const double score = std::acos(std::clamp(cos_j, -1.0, 1.0)) + 0.5 * n1.dot(n0);
+    cand_.push_back({score, j});
+  });
+  if (cand_.empty()) return false;
+  std::sort(cand_.begin(), cand_.end(), [](const Candidate& l, const Candidate& r) {
+    return l.score != r.score ? l.score > r.score : l.p < r.p;
+  });
+  const std::size_t tries = std::min<std::size_t>(cand_.size(), 8);
+  for (std::size_t i = 0; i < tries; ++i) {
+    const std::uint32_t p = cand_[i].p;
+    const Vec3 n1 = (pa - pb).cross(p_[p] - pb).normalized();
+    if (valid(eid, p, n1, mode.radius_factor * base)) {
+      add_triangle(eid, p);
+      return true;
+    }
+  }
+  return false;
+}
+
+void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
+  const FrontEdge e = edges_[eid];  // copy: the pool may grow below
+  const std::uint32_t a = e.a, b = e.b, ep = e.prev, en = e.next;
+  tris_.push_back({b, a, p});
+  const std::uint32_t* va = edges_map_.find(a, p);
+  const std::uint32_t* vb = edges_map_.find(p, b);
+  const bool close_a = va != nullptr, close_b = vb != nullptr;
+  edges_map_.insert(a, b, kInterior);
+  std::uint32_t touched[4];
+  std::size_t nt = 0;
+  if (close_a && close_b) {  // the sub-loop p->a->b->p was this triangle: it disappears
+    edges_map_.insert(a, p, kInterior);
+    edges_map_.insert(p, b, kInterior);
+    const std::uint32_t before = edges_[ep].prev, after = edges_[en].next;
+    if (before != en) {  // p was on the loop twice (two gaps): the rest of the loop joins up
+      edges_[before].next = after;
+      edges_[after].prev = before;
+      touched[nt++] = before;
+      touched[nt++] = after;
+    }
+    kill_edge(ep);
+    kill_edge(en);
+    kill_edge(eid);
+  } else if (close_a) {  // p is the previous vertex: a is closed
+    edges_map_.insert(a, p, kInterior);
+    const std::uint32_t pp = edges_[ep].prev;
+    kill_edge(ep);
+    kill_edge(eid);
+    const std::uint32_t e2 = new_edge(p, b, a);
+    edges_[e2].prev = pp;
+    edges_[e2].next = en;
+    edges_[pp].next = e2;
+    edges_[en].prev = e2;
+    touched[nt++] = e2;
+    touched[nt++] = pp;
+    touched[nt++] = en;
+    ++valence_[p];
+    ++valence_[b];
+  } else if (close_b) {  // p is the next vertex: b is closed
+    edges_map_.insert(p, b, kInterior);
+    const std::uint32_t nn = edges_[en].next;
+    kill_edge(en);
+    kill_edge(eid);
+    const std::uint32_t e1 = new_edge(a, p, b);
+    edges_[e1].prev = ep;
+    edges_[e1].next = nn;
+    edges_[ep].next = e1;
+    edges_[nn].prev = e1;
+    touched[nt++] = e1;
+    touched[nt++] = ep;
+    touched[nt++] = nn;
+    ++valence_[a];
+    ++valence_[p];
+  } else {
+    const bool p_front = state_[p] == VertexState::kFront;
+    std::uint32_t fo = kNone, fi = kNone;
+    if (p_front) {
+      fo = head_out_[p];
+      fi = edges_[fo].prev;
+    }
+    kill_edge(eid);
+    const std::uint32_t e1 = new_edge(a, p, b);
+    const std::uint32_t e2 = new_edge(p, b, a);
+    edges_[ep].next = e1;
+    edges_[e1].prev = ep;
+    edges_[e2].next = en;
+    edges_[en].prev = e2;
+    if (p_front) {  // split or merge loops at p
+      edges_[e1].next = fo;
+      edges_[fo].prev = e1;
+      edges_[fi].next = e2;
+      edges_[e2].prev = fi;
+    } else {
+      edges_[e1].next = e2;
+      edges_[e2].prev = e1;
+    }
+    touched[nt++] = e1;
+    touched[nt++] = e2;
+    touched[nt++] = ep;
+    touched[nt++] = en;
+    ++valence_[a];
+    ++valence_[b];
+    valence_[p] = static_cast<std::uint8_t>(valence_[p] + 2);
+  }
+  update_state(a);
+  update_state(b);
+  update_state(p);
+  for (std::size_t i = 0; i < nt; ++i) push(touched[i]);
+  if (check_every_step_) check_front();
+}
+
+void Builder::grow() {
+  const double deg = kPi / 180;
+  const Mode strict{opt_.radius_factor, std::cos(opt_.min_angle_deg * deg),
+                    std::cos((180.0 - opt_.min_dihedral_deg) * deg)};
+  const Mode relaxed{opt_.relaxed_radius_factor, std::cos(opt_.relaxed_min_angle_deg * deg),
+                     std::cos((180.0 - opt_.relaxed_min_dihedral_deg) * deg)};
+  while (true) {
+    while (!queue_.empty()) {
+      const QueueItem it = queue_.top();
+      queue_.pop();
+      const FrontEdge& e = edges_[it.edge];
+      if (!e.alive || e.stamp != it.stamp) continue;
+      if (!process(it.edge, strict)) deferred_.push_back(it.edge);
+    }
+    if (deferred_.empty()) break;
+    std::vector<std::uint32_t> batch;
+    batch.swap(deferred_);
+    for (std::uint32_t id : batch) {
+      if (!edges_[id].alive) continue;
+      const std::size_t before = tris_.size();
+      if (process(id, relaxed)) {
+        res_.relaxed_triangles += tris_.size() - before;
+      } else {
+        edges_[id].failed = true;
+      }
+    }
+  }
+}
+
+void Builder::fill_small_loops() {
+  // Walk every remaining loop once; close small ones by clipping their sharpest ears.
+  std::vector<std::uint32_t> loop;
+  const std::size_t initial = edges_.size();
+  std::vector<std::uint8_t> seen(initial, 0);
+  for (std::uint32_t start = 0; start < initial; ++start) {
+    if (!edges_[start].alive || seen[start]) continue;
+    loop.clear();
+    double perimeter = 0, spacing_sum = 0;
+    std::uint32_t e = start;
+    do {
+      if (e < initial) seen[e] = 1;
+      loop.push_back(e);
+      perimeter += (p_[edges_[e].b] - p_[edges_[e].a]).norm();
+      spacing_sum += spacing(edges_[e].a);
+      e = edges_[e].next;
+    } while (e != start && loop.size() <= opt_.fill_max_edges + 1);
+    if (e != start || loop.size() > opt_.fill_max_edges) continue;
+    const double mean_spacing = spacing_sum / static_cast<double>(loop.size());
+    if (perimeter > opt_.fill_perimeter_factor * mean_spacing) continue;
+    // Clip ears: always the one with the smallest opening angle whose closing edge is new.
+    std::size_t guard = loop.size() * 2;
+    std::uint32_t cur = start;
+    bool closed = false;
+    while (guard-- > 0) {
+      // collect the current loop
+      std::vector<std::uint32_t> ring;
+      std::uint32_t it = cur;
+      do {
+        ring.push_back(it);
+        it = edges_[it].next;
+      } while (it != cur && ring.size() < 64);
+      if (ring.size() < 3) break;
+      std::uint32_t best = kNone;
+      double best_angle = 1e9;
+      for (std::uint32_t r : ring) {
+        const FrontEdge& fe = edges_[r];
+        const std::uint32_t c = edges_[fe.next].b;
+        if (ring.size() > 3 && edges_map_.find(fe.a, c) != nullptr) continue;
+        const double ang = front_angle_at_end(r);
+        if (ang < best_angle) {
+          best_angle = ang;
+          best = r;
+        }
+      }
+      if (best == kNone || (best_angle >= kPi && ring.size() > 3)) break;
+      const std::uint32_t c = edges_[edges_[best].next].b;
+      const bool last = ring.size() == 3;
+      cur = edges_[best].prev;
+      add_triangle(best, c);
+      if (last) {
+        closed = true;
+        break;
+      }
+    }
+    if (closed) ++res_.filled_gaps;
+  }
+}
+
+void Builder::repair_fans() {
+  // A vertex whose triangles form several fans is non-manifold: keep its largest fan.
+  for (int round = 0; round < 8; ++round) {
+    const std::size_t n = p_.size();
+    std::vector<std::uint32_t> start(n + 1, 0);
+    for (const Triangle& t : tris_)
+      for (std::uint32_t v : t) ++start[v + 1];
+    for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+    std::vector<std::uint32_t> vt(start[n]);
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::uint32_t t = 0; t < tris_.size(); ++t)
+      for (std::uint32_t v : tris_[t]) vt[fill[v]++] = t;
+    std::vector<std::uint8_t> dead(tris_.size(), 0);
+    std::size_t removed = 0;
+    std::vector<int> fan;
+    for (std::uint32_t v = 0; v < n; ++v) {
+      const std::uint32_t b0 = start[v], b1 = start[v + 1];
+      if (b1 - b0 < 2) continue;
+      // union-find over the triangles of v: join triangles sharing an edge (v, w)
+      const std::uint32_t m = b1 - b0;
+      fan.assign(m, -1);
+      auto find = [&](int i) {
+        while (fan[static_cast<std::size_t>(i)] >= 0) i = fan[static_cast<std::size_t>(i)];
+        return i;
+      };
+      for (std::uint32_t i = 0; i < m; ++i)
+        for (std::uint32_t j = i + 1; j < m; ++j) {
+          const Triangle &ti = tris_[vt[b0 + i]], &tj = tris_[vt[b0 + j]];
+          int shared = 0;
+          for (std::uint32_t x : ti)
+            if (x != v && (x == tj[0] || x == tj[1] || x == tj[2])) ++shared;
+          if (shared == 0) continue;
+          const int ri = find(static_cast<int>(i)), rj = find(static_cast<int>(j));
+          if (ri != rj) fan[static_cast<std::size_t>(rj)] = ri;
+        }
+      std::vector<std::uint32_t> size(m, 0);
+      std::size_t roots = 0;
+      for (std::uint32_t i = 0; i < m; ++i) {
+        const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
+        if (size[r]++ == 0) ++roots;
+      }
+      if (roots < 2) continue;
+      std::size_t keep = 0;
+      for (std::size_t i = 0; i < m; ++i)
+        if (size[i] > size[keep]) keep = i;
+      for (std::uint32_t i = 0; i < m; ++i)
+        if (static_cast<std::size_t>(find(static_cast<int>(i))) != keep && !dead[vt[b0 + i]]) {
+          dead[vt[b0 + i]] = 1;
+          ++removed;
+        }
+    }
+    if (removed == 0) break;
+    std::size_t w = 0;
+    for (std::size_t t = 0; t < tris_.size(); ++t)
+      if (!dead[t]) tris_[w++] = tris_[t];
+    tris_.resize(w);
+    res_.removed_fan_triangles += removed;
+  }
+}
+
+void Builder::orient_components() {
+  // Components by union-find over shared vertices (fans are single after repair_fans).
+  const std::size_t n = p_.size();
+  std::vector<std::uint32_t> parent(n);
+  for (std::uint32_t i = 0; i < n; ++i) parent[i] = i;
+  auto find = [&](std::uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const Triangle& t : tris_) {
+    const std::uint32_t r0 = find(t[0]);
+    for (int k = 1; k < 3; ++k) {
+      const std::uint32_t r = find(t[static_cast<std::size_t>(k)]);
+      if (r != r0) parent[r] = r0;
+    }
+  }
+  // Per component: boundary edges (to know whether it is closed) and signed volume.
+  std::vector<std::uint64_t> half;
+  half.reserve(tris_.size() * 3);
+  for (const Triangle& t : tris_)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t u = t[static_cast<std::size_t>(k)], v = t[static_cast<std::size_t>((k + 1) % 3)];
+      half.push_back(u < v ? (std::uint64_t{u} << 32) | v : (std::uint64_t{v} << 32) | u);
+    }
+  std::sort(half.begin(), half.end());
+  std::vector<std::uint8_t> open(n, 0);
+  for (std::size_t i = 0; i < half.size();) {
+    std::size_t j = i;
+    while (j < half.size() && half[j] == half[i]) ++j;
+    if (j - i == 1) open[find(static_cast<std::uint32_t>(half[i] >> 32))] = 1;
+    i = j;
+  }
+  std::vector<Vec3> centroid(n, Vec3::Zero());
+  std::vector<double> vol(n, 0.0), count(n, 0.0);
+  for (const Triangle& t : tris_) {
+    const std::uint32_t r = find(t[0]);
+    centroid[r] += p_[t[0]];
+    count[r] += 1;
+  }
+  for (const Triangle& t : tris_) {
+    const std::uint32_t r = find(t[0]);
+    const Vec3 c = centroid[r] / count[r];
+    vol[r] += (p_[t[0]] - c).dot((p_[t[1]] - c).cross(p_[t[2]] - c));
+  }
+  std::vector<std::uint8_t> flip(n, 0);
+  for (std::uint32_t v = 0; v < n; ++v)
+    if (find(v) == v && count[v] > 0 && !open[v] && vol[v] < 0) {
+      flip[v] = 1;
+      ++res_.flipped_components;
+    }
+  for (Triangle& t : tris_)
+    if (flip[find(t[0])]) std::swap(t[1], t[2]);
+}
+
+FrontResult Builder::run() {
+  const std::size_t n = p_.size();
+  // Seeds: flattest points first (index breaks ties, so the order is deterministic).
+  std::vector<std::uint32_t> order(n);
+  for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::uint32_t l, std::uint32_t r) {
+    return f_.flatness[l] != f_.flatness[r] ? f_.flatness[l] < f_.flatness[r] : l < r;
+  });
+  for (std::uint32_t s : order) {
+    if (state_[s] != VertexState::kFree) continue;
+    if (try_seed(s)) grow();
+  }
+  fill_small_loops();
+  repair_fans();
+  orient_components();
+  // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
+  std::vector<std::uint8_t> used(n, 0);
+  for (const Triangle& t : tris_)
+    for (std::uint32_t v : t) used[v] = 1;
+  for (std::uint32_t v = 0; v < n; ++v) {
+    if (!used[v]) {
+      state_[v] = VertexState::kOutlier;
+      res_.outliers.push_back(v);
+    } else if (head_out_[v] != kNone) {
+      state_[v] = VertexState::kBoundary;
+    } else {
+      state_[v] = VertexState::kDone;
+    }
+  }
+  res_.triangles = std::move(tris_);
+  res_.state = std::move(state_);
+  return std::move(res_);
+}
+
+}  // namespace
+
+std::vector<std::string> FrontOptions::validate() const {
+  std::vector<std::string> errors;
+  if (!(min_angle_deg >= 0 && min_angle_deg < 60))
+    errors.push_back("min_angle_deg must be in [0, 60), got " + std::to_string(min_angle_deg));
+  if (!(min_dihedral_deg >= 0 && min_dihedral_deg < 180))
+    errors.push_back("min_dihedral_deg must be in [0, 180)");
+  if (!(radius_factor > 0.5 && radius_factor <= 10)) errors.push_back("radius_factor must be in (0.5, 10]");
+  if (!(relaxed_radius_factor >= radius_factor && relaxed_radius_factor <= 10))
+    errors.push_back("relaxed_radius_factor must be in [radius_factor, 10]");
+  if (!(relaxed_min_angle_deg >= 0 && relaxed_min_angle_deg <= min_angle_deg))
+    errors.push_back("relaxed_min_angle_deg must be in [0, min_angle_deg]");
+  if (max_valence < 6 || max_valence > 250) errors.push_back("max_valence must be in [6, 250]");
+  return errors;
+}
+
+FrontResult advance_front(std::span<const Vec3> points, const LocalFrames& frames,
+                          const PointGrid& grid, const FrontOptions& options) {
+  Builder b(points, frames, grid, options);
+  return b.run();
+}
+
+}  // namespace scanmesh::recon

@@ -1,0 +1,144 @@
+// Point cloud -> manifold mesh pipeline.
+// SPDX-License-Identifier: MIT
+#include "scanmesh/recon/reconstruct.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "scanmesh/common/error.hpp"
+#include "scanmesh/recon/grid.hpp"
+#include "scanmesh/recon/normals.hpp"
+
+namespace scanmesh::recon {
+namespace {
+
+void check_input(std::span<const Vec3> points) {
+  if (points.empty()) throw GeometryError("no points: the input is empty");
+  std::size_t bad = 0, first_bad = 0;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!points[i].allFinite() && bad++ == 0) first_bad = i;
+  if (bad > 0)
+    throw GeometryError(std::to_string(bad) + " point(s) have non-finite coordinates (first: #" +
+                        std::to_string(first_bad) + ")");
+  // Distinct points and collinearity from the covariance of the cloud.
+  std::size_t distinct = 1;
+  for (std::size_t i = 1; i < points.size() && distinct < 3; ++i) {
+    bool seen = false;
+    for (std::size_t j = 0; j < i && !seen; ++j) seen = points[j] == points[i];
+    if (!seen) ++distinct;
+    if (i > 64) {
+      distinct = 3;  // large clouds: decided by the covariance below
+      break;
+    }
+  }
+  if (distinct < 3)
+    throw GeometryError("only " + std::to_string(distinct) +
+                        " distinct point(s): a surface needs at least 3");
+  Vec3 mean = Vec3::Zero();
+  for (const Vec3& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Vec3& p : points) cov += (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
+  const Vec3 ev = es.eigenvalues();
+  if (!(ev[2] > 0)) throw GeometryError("all points coincide: no surface");
+  if (ev[1] <= 1e-18 * ev[2])
+    throw GeometryError("all points are collinear: they span no surface");
+}
+
+}  // namespace
+
+std::vector<std::string> ReconstructOptions::validate() const {
+  std::vector<std::string> errors = front.validate();
+  if (cube_mode == CubeMode::kFixed && !(cube_mm > 0 && std::isfinite(cube_mm)))
+    errors.push_back("cube size must be a positive number");
+  if (normals.neighbours < 6 || normals.neighbours > 64)
+    errors.push_back("normal neighbourhood must be in [6, 64]");
+  return errors;
+}
+
+ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOptions& options,
+                              const StageObserver& observer) {
+  auto stage = [&](std::string_view name) {
+    if (observer) observer(name);
+  };
+  if (const auto errors = options.validate(); !errors.empty()) {
+    std::string msg = "invalid reconstruction options:";
+    for (const auto& e : errors) msg += " " + e + ";";
+    throw ConfigError(msg);
+  }
+  check_input(points);
+  ReconstructResult res;
+  res.input_points = points.size();
+
+  stage("reduce");
+  res.spacing = estimate_spacing(points);
+  std::vector<std::uint32_t> kept;
+  if (options.cube_mode == ReconstructOptions::CubeMode::kNone) {
+    // Every point, but exact duplicates collapse (they cannot be separate vertices).
+    const double tiny = std::max(res.spacing.nearest_mm * 1e-3, 1e-12);
+    kept = cube_reduce(points, tiny);
+    res.cube_mm = 0;
+  } else {
+    res.cube_mm = options.cube_mode == ReconstructOptions::CubeMode::kFixed
+                      ? options.cube_mm
+                      : auto_cube_size(res.spacing);
+    if (!(res.cube_mm > 0)) res.cube_mm = std::max(res.spacing.nearest_mm, 1e-9);
+    kept = cube_reduce(points, res.cube_mm);
+  }
+  std::vector<Vec3> reduced(kept.size());
+  for (std::size_t i = 0; i < kept.size(); ++i) reduced[i] = points[kept[i]];
+  if (reduced.size() < 3)
+    throw GeometryError("only " + std::to_string(reduced.size()) +
+                        " point(s) left after cube reduction; use a smaller --cube");
+
+  stage("normals");
+  // Spatially sort the reduced points (grid order) so the front walks memory coherently.
+  const double typical = std::max(res.cube_mm, res.spacing.nearest_mm);
+  PointGrid grid;
+  grid.build(reduced, 2.5 * std::max(typical, 1e-12));
+  {
+    std::vector<Vec3> sorted(reduced.size());
+    const auto& order = grid.order();
+    for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = reduced[order[i]];
+    reduced.swap(sorted);
+  }
+  grid.build(reduced, 2.5 * std::max(typical, 1e-12));
+  const LocalFrames frames = estimate_frames(reduced, grid, options.normals);
+  // Re-grid with the measured local spacing so one ring covers the candidate radius.
+  {
+    std::vector<float> sp = frames.spacing;
+    std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2), sp.end());
+    const double median = sp[sp.size() / 2];
+    if (median > 0) grid.build(reduced, (options.front.radius_factor * 1.2 + 0.6) * median);
+  }
+  res.reduced_points = reduced.size();
+
+  stage("front");
+  FrontResult fr = advance_front(reduced, frames, grid, options.front);
+
+  stage("output");
+  std::vector<std::uint32_t> remap(reduced.size(), 0xffffffffu);
+  for (const Triangle& t : fr.triangles)
+    for (std::uint32_t v : t)
+      if (remap[v] == 0xffffffffu) {
+        remap[v] = static_cast<std::uint32_t>(res.mesh.vertices.size());
+        res.mesh.vertices.push_back(reduced[v]);
+      }
+  res.mesh.triangles.reserve(fr.triangles.size());
+  for (const Triangle& t : fr.triangles) res.mesh.triangles.push_back({remap[t[0]], remap[t[1]], remap[t[2]]});
+  res.outliers.reserve(fr.outliers.size());
+  for (std::uint32_t v : fr.outliers) res.outliers.push_back(reduced[v]);
+  res.seeds = fr.seeds;
+  res.relaxed_triangles = fr.relaxed_triangles;
+  res.filled_gaps = fr.filled_gaps;
+  res.removed_fan_triangles = fr.removed_fan_triangles;
+  res.edge_evaluations = fr.edge_evaluations;
+  res.points_scanned = fr.points_scanned;
+  res.seed_attempts = fr.seed_attempts;
+  stage("done");
+  return res;
+}
+
+}  // namespace scanmesh::recon

@@ -1,0 +1,4 @@
+// Catch2 main shared by every test executable.
+// SPDX-License-Identifier: MIT
+#define CATCH_CONFIG_MAIN
+#include <catch2/catch.hpp>

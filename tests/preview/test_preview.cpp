@@ -1,0 +1,164 @@
+// Smoke tests of the preview renderer: PNGs are written atomically and are valid PNG files of the
+// requested size; write failures are OutputErrors naming the file.
+// SPDX-License-Identifier: MIT
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <numbers>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "scanmesh/common/error.hpp"
+#include "scanmesh/preview/render.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using scanmesh::preview::render_deviation_png;
+using scanmesh::preview::render_mesh_png;
+using scanmesh::preview::RenderOptions;
+using scanmesh::recon::Mesh;
+using scanmesh::recon::Vec3;
+
+/// A fresh directory under the system temp directory, removed with its contents at scope exit.
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device rd;
+    path_ = fs::temp_directory_path() / ("scanmesh_test_preview_" + std::to_string(rd()));
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  [[nodiscard]] const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+/// Torus with its axis along +Y, outward oriented, with one quad removed (a hole).
+Mesh holed_torus() {
+  const std::uint32_t nu = 48, nv = 24;
+  Mesh m;
+  for (std::uint32_t i = 0; i < nu; ++i) {
+    for (std::uint32_t j = 0; j < nv; ++j) {
+      const double u = 2 * std::numbers::pi * i / nu, v = 2 * std::numbers::pi * j / nv;
+      m.vertices.emplace_back((3 + std::cos(v)) * std::cos(u), std::sin(v),
+                              -(3 + std::cos(v)) * std::sin(u));
+    }
+  }
+  auto id = [&](std::uint32_t i, std::uint32_t j) { return (i % nu) * nv + (j % nv); };
+  for (std::uint32_t i = 0; i < nu; ++i) {
+    for (std::uint32_t j = 0; j < nv; ++j) {
+      if (i == 5 && j == 3) continue;
+      m.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      m.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  }
+  return m;
+}
+
+std::vector<unsigned char> read_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// Checks the PNG signature and that the IHDR chunk carries the expected size.
+void check_png(const fs::path& p, int width, int height) {
+  INFO("file " << p);
+  REQUIRE(fs::is_regular_file(p));
+  const std::vector<unsigned char> b = read_bytes(p);
+  REQUIRE(b.size() > 33);
+  const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  CHECK(std::equal(signature, signature + 8, b.begin()));
+  CHECK(std::string(b.begin() + 12, b.begin() + 16) == "IHDR");
+  auto be32 = [&](std::size_t at) {
+    return (std::uint32_t{b[at]} << 24) | (std::uint32_t{b[at + 1]} << 16) |
+           (std::uint32_t{b[at + 2]} << 8) | std::uint32_t{b[at + 3]};
+  };
+  CHECK(be32(16) == static_cast<std::uint32_t>(width));
+  CHECK(be32(20) == static_cast<std::uint32_t>(height));
+}
+
+/// No temporary files left beside the target.
+std::size_t files_in(const fs::path& dir) {
+  std::size_t n = 0;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    (void)entry;
+    ++n;
+  }
+  return n;
+}
+
+}  // namespace
+
+TEST_CASE("render_mesh_png writes a PNG of the requested size", "[preview]") {
+  TempDir dir;
+  const Mesh m = holed_torus();
+  RenderOptions options;
+  options.up = Vec3(0, 1, 0);
+  options.title = "torus with a hole";
+  const fs::path png = dir.path() / "torus.png";
+  render_mesh_png(m, png, options);
+  check_png(png, options.width_px, options.height_px);
+  CHECK(files_in(dir.path()) == 1);
+
+  // Overwriting works and other sizes are honoured.
+  options.width_px = 320;
+  options.height_px = 200;
+  options.view_dir = Vec3(0, -1, 0);  // looking along -up: falls back to another up axis
+  render_mesh_png(m, png, options);
+  check_png(png, 320, 200);
+  CHECK(files_in(dir.path()) == 1);
+}
+
+TEST_CASE("render_deviation_png writes a PNG with default and explicit limits", "[preview]") {
+  TempDir dir;
+  const Mesh m = holed_torus();
+  std::vector<double> values;
+  for (const Vec3& v : m.vertices) values.push_back(0.01 * v.x() + 0.002 * v.y());
+  render_deviation_png(m, values, dir.path() / "dev.png");
+  check_png(dir.path() / "dev.png", 1024, 768);
+  render_deviation_png(m, values, dir.path() / "dev_limit.png", {}, 0.005);
+  check_png(dir.path() / "dev_limit.png", 1024, 768);
+  // All zero: the range falls back to a positive value instead of dividing by zero.
+  render_deviation_png(m, std::vector<double>(m.vertices.size(), 0.0), dir.path() / "zero.png");
+  check_png(dir.path() / "zero.png", 1024, 768);
+  CHECK(files_in(dir.path()) == 3);
+}
+
+TEST_CASE("render: empty mesh still gives a picture", "[preview]") {
+  TempDir dir;
+  render_mesh_png(Mesh{}, dir.path() / "empty.png");
+  check_png(dir.path() / "empty.png", 1024, 768);
+}
+
+TEST_CASE("render: unwritable target is an OutputError naming the file", "[preview]") {
+  TempDir dir;
+  const fs::path png = dir.path() / "no_such_dir" / "out.png";
+  try {
+    render_mesh_png(holed_torus(), png);
+    FAIL("no exception");
+  } catch (const scanmesh::OutputError& e) {
+    CHECK_THAT(e.what(), Catch::Contains(png.string()));
+  }
+  CHECK(files_in(dir.path()) == 0);
+}
+
+TEST_CASE("render: bad arguments are rejected", "[preview]") {
+  TempDir dir;
+  const Mesh m = holed_torus();
+  CHECK_THROWS_AS(render_deviation_png(m, {1.0, 2.0}, dir.path() / "x.png"), std::invalid_argument);
+  RenderOptions tiny;
+  tiny.width_px = 0;
+  CHECK_THROWS_AS(render_mesh_png(m, dir.path() / "x.png", tiny), scanmesh::ConfigError);
+  CHECK(files_in(dir.path()) == 0);
+}

@@ -1,0 +1,65 @@
+// Synthetic point clouds with known surfaces for the geometry tests and benchmarks.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::test {
+
+using recon::Vec3;
+
+/// Fibonacci sphere: n nearly uniform points on a sphere of radius r at c.
+inline std::vector<Vec3> sphere_points(std::size_t n, double r = 10, Vec3 c = Vec3::Zero()) {
+  std::vector<Vec3> pts;
+  pts.reserve(n);
+  const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = 1.0 - 2.0 * (static_cast<double>(i) + 0.5) / static_cast<double>(n);
+    const double rad = std::sqrt(1.0 - z * z);
+    const double th = golden * static_cast<double>(i);
+    pts.push_back(c + r * Vec3(rad * std::cos(th), rad * std::sin(th), z));
+  }
+  return pts;
+}
+
+/// Open cylinder (axis z, radius r, height h) sampled as a raster scan: rings every
+/// `line_mm` along z, samples every `along_mm` along each ring.
+inline std::vector<Vec3> cylinder_raster(double r, double h, double along_mm, double line_mm) {
+  std::vector<Vec3> pts;
+  const int per_ring = static_cast<int>(std::round(2 * std::numbers::pi * r / along_mm));
+  const int rings = static_cast<int>(std::round(h / line_mm)) + 1;
+  for (int k = 0; k < rings; ++k)
+    for (int i = 0; i < per_ring; ++i) {
+      const double a = 2 * std::numbers::pi * i / per_ring;
+      pts.emplace_back(r * std::cos(a), r * std::sin(a), k * line_mm);
+    }
+  return pts;
+}
+
+/// Surface of an axis-aligned cube of edge s (corner at origin), grid-sampled every `step`.
+inline std::vector<Vec3> cube_points(double s, double step) {
+  std::vector<Vec3> pts;
+  const int m = static_cast<int>(std::round(s / step));
+  for (int i = 0; i <= m; ++i)
+    for (int j = 0; j <= m; ++j)
+      for (int k = 0; k <= m; ++k) {
+        const bool on = i == 0 || i == m || j == 0 || j == m || k == 0 || k == m;
+        if (on) pts.emplace_back(i * step, j * step, k * step);
+      }
+  return pts;
+}
+
+/// Adds seeded Gaussian noise of standard deviation sigma to every coordinate.
+inline void add_noise(std::vector<Vec3>& pts, double sigma, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> nd(0.0, sigma);
+  for (auto& p : pts) p += Vec3(nd(rng), nd(rng), nd(rng));
+}
+
+}  // namespace scanmesh::test
