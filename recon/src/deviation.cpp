@@ -98,22 +98,17 @@ ClosestPoint closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, co
   return ClosestPoint{q, (p - q).squaredNorm(), Feature::kFace};
 }
 
-struct Box {
-  Vec3 lo{Vec3::Constant(std::numeric_limits<double>::infinity())};
-  Vec3 hi{Vec3::Constant(-std::numeric_limits<double>::infinity())};
-  void grow(const Vec3& p) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  void grow(const Box& b) {
-    lo = lo.cwiseMin(b.lo);
-    hi = hi.cwiseMax(b.hi);
-  }
-  [[nodiscard]] double dist_sq(const Vec3& p) const {
-    const Vec3 d = (lo - p).cwiseMax(p - hi).cwiseMax(0.0);
-    return d.squaredNorm();
-  }
-};
+/// Float bounds that contain the double value (boxes must stay conservative).
+float round_down(double v) {
+  const auto f = static_cast<float>(v);
+  return static_cast<double>(f) <= v ? f
+                                     : std::nextafter(f, -std::numeric_limits<float>::infinity());
+}
+float round_up(double v) {
+  const auto f = static_cast<float>(v);
+  return static_cast<double>(f) >= v ? f
+                                     : std::nextafter(f, std::numeric_limits<float>::infinity());
+}
 
 /// BVH node with a float box rounded outwards (so box distances stay lower bounds). Leaf
 /// (count > 0): triangles [first, first + count) of the leaf-ordered triangle array. Internal
@@ -125,12 +120,6 @@ struct Node {
   std::uint32_t first = 0;
   std::uint32_t count = 0;
 
-  void set_box(const Box& b) {
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = std::nextafter(static_cast<float>(b.lo[k]), -std::numeric_limits<float>::infinity());
-      hi[k] = std::nextafter(static_cast<float>(b.hi[k]), std::numeric_limits<float>::infinity());
-    }
-  }
   [[nodiscard]] double dist_sq(const Vec3& p) const {
     double sum = 0;
     for (int k = 0; k < 3; ++k) {
@@ -188,14 +177,26 @@ void SurfaceDistance::Impl::build(const Mesh& mesh) {
 
   // Median split over centroids along the longest axis of the centroid box; iterative with an
   // explicit work list so deep inputs cannot overflow the call stack.
-  std::vector<std::uint32_t> order(nt);
-  std::vector<Vec3> centroid(nt);
-  std::vector<Box> tri_box(nt);
+  // Work on compact per-triangle items (float centroid and outward-rounded float box) that are
+  // partitioned in place: sequential memory instead of indirection through an index array.
+  struct Item {
+    float centroid[3];
+    float lo[3], hi[3];
+    std::uint32_t index;
+  };
+  std::vector<Item> items(nt);
   for (std::uint32_t t = 0; t < nt; ++t) {
-    order[t] = t;
     const Triangle& tri = mesh.triangles[t];
-    for (std::uint32_t v : tri) tri_box[t].grow(mesh.vertices[v]);
-    centroid[t] = (mesh.vertices[tri[0]] + mesh.vertices[tri[1]] + mesh.vertices[tri[2]]) / 3.0;
+    const Vec3 &a = mesh.vertices[tri[0]], &b = mesh.vertices[tri[1]], &c = mesh.vertices[tri[2]];
+    const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+    const Vec3 mid = (a + b + c) / 3.0;
+    Item& item = items[t];
+    for (int k = 0; k < 3; ++k) {
+      item.centroid[k] = static_cast<float>(mid[k]);
+      item.lo[k] = round_down(lo[k]);
+      item.hi[k] = round_up(hi[k]);
+    }
+    item.index = t;
   }
   pairs.reserve(nt / kLeafSize + 1);
   // A slot names where a node lives: kNone for the root, else pair * 2 + side.
@@ -205,33 +206,45 @@ void SurfaceDistance::Impl::build(const Mesh& mesh) {
   struct Work {
     std::uint32_t slot, begin, end;
   };
+  constexpr float kInf = std::numeric_limits<float>::infinity();
   std::vector<Work> work{{kNone, 0, static_cast<std::uint32_t>(nt)}};
   while (!work.empty()) {
     const Work job = work.back();
     work.pop_back();
-    Box box, cbox;
-    for (std::uint32_t i = job.begin; i < job.end; ++i) {
-      box.grow(tri_box[order[i]]);
-      cbox.grow(centroid[order[i]]);
+    Node& node = node_at(job.slot);
+    float clo[3] = {kInf, kInf, kInf}, chi[3] = {-kInf, -kInf, -kInf};
+    for (int k = 0; k < 3; ++k) {
+      node.lo[k] = kInf;
+      node.hi[k] = -kInf;
     }
-    node_at(job.slot).set_box(box);
+    for (std::uint32_t i = job.begin; i < job.end; ++i) {
+      const Item& item = items[i];
+      for (int k = 0; k < 3; ++k) {
+        node.lo[k] = std::min(node.lo[k], item.lo[k]);
+        node.hi[k] = std::max(node.hi[k], item.hi[k]);
+        clo[k] = std::min(clo[k], item.centroid[k]);
+        chi[k] = std::max(chi[k], item.centroid[k]);
+      }
+    }
     const std::uint32_t n = job.end - job.begin;
     if (n <= kLeafSize) {
-      node_at(job.slot).first = job.begin;
-      node_at(job.slot).count = n;
+      node.first = job.begin;
+      node.count = n;
       continue;
     }
     int axis = 0;
-    (cbox.hi - cbox.lo).maxCoeff(&axis);
+    for (int k = 1; k < 3; ++k) {
+      if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
+    }
     const std::uint32_t mid = job.begin + n / 2;
-    std::nth_element(order.begin() + job.begin, order.begin() + mid, order.begin() + job.end,
-                     [&](std::uint32_t x, std::uint32_t y) {
-                       return centroid[x][axis] != centroid[y][axis]
-                                  ? centroid[x][axis] < centroid[y][axis]
-                                  : x < y;
+    std::nth_element(items.begin() + job.begin, items.begin() + mid, items.begin() + job.end,
+                     [axis](const Item& x, const Item& y) {
+                       return x.centroid[axis] != y.centroid[axis]
+                                  ? x.centroid[axis] < y.centroid[axis]
+                                  : x.index < y.index;
                      });
     const auto pair = static_cast<std::uint32_t>(pairs.size());
-    pairs.emplace_back();
+    pairs.emplace_back();  // may reallocate: `node` is not used after this point
     node_at(job.slot).first = pair;
     node_at(job.slot).count = 0;
     work.push_back(Work{pair * 2 + 1, mid, job.end});
@@ -239,9 +252,9 @@ void SurfaceDistance::Impl::build(const Mesh& mesh) {
   }
   tris.resize(nt);
   for (std::uint32_t i = 0; i < nt; ++i) {
-    const Triangle& tri = mesh.triangles[order[i]];
-    tris[i] =
-        LeafTriangle{mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]], order[i]};
+    const std::uint32_t t = items[i].index;
+    const Triangle& tri = mesh.triangles[t];
+    tris[i] = LeafTriangle{mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]], t};
   }
   build_normals(mesh);
 }

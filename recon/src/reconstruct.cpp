@@ -85,10 +85,16 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
                       ? options.cube_mm
                       : auto_cube_size(res.spacing);
     if (!(res.cube_mm > 0)) res.cube_mm = std::max(res.spacing.nearest_mm, 1e-9);
-    kept = cube_reduce(points, res.cube_mm);
+    kept = cube_reduce_thin(points, res.cube_mm);
   }
-  std::vector<Vec3> reduced(kept.size());
-  for (std::size_t i = 0; i < kept.size(); ++i) reduced[i] = points[kept[i]];
+  std::vector<Vec3> reduced;
+  if (options.project && res.cube_mm > 0) {
+    reduced = project_to_local_planes(points, kept, options.project_radius_factor * res.cube_mm,
+                                      0.5 * res.cube_mm);
+  } else {
+    reduced.resize(kept.size());
+    for (std::size_t i = 0; i < kept.size(); ++i) reduced[i] = points[kept[i]];
+  }
   if (reduced.size() < 3)
     throw GeometryError("only " + std::to_string(reduced.size()) +
                         " point(s) left after cube reduction; use a smaller --cube");

@@ -1,11 +1,13 @@
 // Cube reduction (reference method): keep, in every occupied cube, the point nearest its centre.
 // SPDX-License-Identifier: MIT
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
 
 #include "scanmesh/common/error.hpp"
+#include "scanmesh/recon/grid.hpp"
 #include "scanmesh/recon/reduce.hpp"
 
 namespace scanmesh::recon {
@@ -59,6 +61,80 @@ std::vector<std::uint32_t> cube_reduce(std::span<const Vec3> points, double cube
     if (best[h] != kEmpty) kept.push_back(best[h]);
   std::sort(kept.begin(), kept.end());
   return kept;
+}
+
+std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
+                                             std::span<const std::uint32_t> priority,
+                                             double min_distance) {
+  std::vector<Vec3> sub(priority.size());
+  for (std::size_t i = 0; i < priority.size(); ++i) sub[i] = points[priority[i]];
+  PointGrid grid;
+  grid.build(sub, min_distance);
+  std::vector<std::uint8_t> kept(sub.size(), 0);
+  const double r2 = min_distance * min_distance;
+  std::vector<std::uint32_t> out;
+  out.reserve(sub.size());
+  for (std::uint32_t i = 0; i < sub.size(); ++i) {
+    bool clash = false;
+    grid.for_each_near(sub[i], 1, [&](std::uint32_t j) {
+      if (kept[j] && (sub[j] - sub[i]).squaredNorm() < r2) clash = true;
+    });
+    if (clash) continue;
+    kept[i] = 1;
+    out.push_back(priority[i]);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
+                                          std::span<const std::uint32_t> representatives,
+                                          double radius, double max_move) {
+  PointGrid grid;
+  grid.build(input, radius);
+  const double r2 = radius * radius;
+  std::vector<Vec3> out(representatives.size());
+  for (std::size_t i = 0; i < representatives.size(); ++i) {
+    const Vec3& p = input[representatives[i]];
+    Vec3 sum = Vec3::Zero();
+    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+    std::size_t n = 0;
+    grid.for_each_near(p, 1, [&](std::uint32_t j) {
+      const Vec3 d = input[j] - p;  // relative to p: well conditioned
+      if (d.squaredNorm() > r2) return;
+      sum += d;
+      outer += d * d.transpose();
+      ++n;
+    });
+    out[i] = p;
+    if (n < 6) continue;
+    const Vec3 mean = sum / static_cast<double>(n);
+    const Eigen::Matrix3d cov = outer / static_cast<double>(n) - mean * mean.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    const Vec3 normal = es.eigenvectors().col(0);
+    double move = -mean.dot(normal);  // signed distance from p to the plane, along -normal
+    move = std::clamp(move, -max_move, max_move);
+    out[i] = p - move * normal;
+  }
+  return out;
+}
+
+std::vector<std::uint32_t> cube_reduce_thin(std::span<const Vec3> points, double cube) {
+  std::vector<std::uint32_t> kept = cube_reduce(points, cube);
+  if (kept.empty()) return kept;
+  // Priority: distance to the own cube centre, most central first (index breaks ties).
+  Vec3 lo = points[0];
+  for (const Vec3& p : points) lo = lo.cwiseMin(p);
+  std::vector<std::pair<double, std::uint32_t>> order(kept.size());
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    const Vec3 g = (points[kept[i]] - lo) / cube;
+    const Vec3 c = (g.array().floor() + 0.5).matrix();
+    order[i] = {(g - c).squaredNorm(), kept[i]};
+  }
+  std::sort(order.begin(), order.end());
+  std::vector<std::uint32_t> prio(order.size());
+  for (std::size_t i = 0; i < order.size(); ++i) prio[i] = order[i].second;
+  return thin_min_distance(points, prio, 0.5 * cube);
 }
 
 }  // namespace scanmesh::recon

@@ -1,6 +1,7 @@
 // Sampling statistics: nearest-neighbour spacing, cross-line spacing and shell thickness.
 // SPDX-License-Identifier: MIT
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -48,7 +49,7 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
       if (j != i) near.emplace_back((points[j] - p).squaredNorm(), j);
     });
     if (near.empty()) continue;
-    const std::size_t k = std::min<std::size_t>(16, near.size());
+    const std::size_t k = std::min<std::size_t>(20, near.size());
     std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
     // Skip exact duplicates for the direction of the nearest neighbour.
     std::size_t first = 0;
@@ -65,7 +66,9 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
       if (std::abs(u.dot(w)) < std::sqrt(0.5 * len2)) d2 = std::sqrt(len2);
     }
     if (std::isfinite(d2)) d2s.push_back(d2);
-    if (k >= 8) {
+    if (k >= 12) {
+      // Noise: RMS residual of a local quadric (height over the PCA plane), so curvature of a
+      // coarsely sampled surface does not count as noise.
       Vec3 mean = Vec3::Zero();
       for (std::size_t m = 0; m < k; ++m) mean += points[near[m].second];
       mean /= static_cast<double>(k);
@@ -74,20 +77,36 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
         const Vec3 d = points[near[m].second] - mean;
         cov += d * d.transpose();
       }
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov / static_cast<double>(k),
-                                                        Eigen::EigenvaluesOnly);
-      thick.push_back(std::sqrt(std::max(0.0, es.eigenvalues()[0])));
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+      const Eigen::Matrix3d frame = es.eigenvectors();  // col 0 = normal
+      Eigen::MatrixXd a(k, 6);
+      Eigen::VectorXd h(k);
+      for (std::size_t m = 0; m < k; ++m) {
+        const Vec3 d = frame.transpose() * (points[near[m].second] - mean);
+        const double u = d.z(), v = d.y();
+        a.row(static_cast<Eigen::Index>(m)) << u * u, u * v, v * v, u, v, 1.0;
+        h[static_cast<Eigen::Index>(m)] = d.x();
+      }
+      const Eigen::VectorXd coef = a.colPivHouseholderQr().solve(h);
+      const double rss = (a * coef - h).squaredNorm();
+      thick.push_back(std::sqrt(rss / static_cast<double>(k - 6)));
     }
   }
   est.sampled = d1s.size();
   est.nearest_mm = median(d1s);
   est.cross_mm = d2s.empty() ? est.nearest_mm : median(d2s);
-  est.thickness_mm = median(thick);
+  // Lowest decile: noise thickens every neighbourhood alike, while sharp features and
+  // thin walls thicken only some; the decile measures the noise and ignores the features.
+  if (!thick.empty()) {
+    auto q = thick.begin() + static_cast<std::ptrdiff_t>(thick.size() / 10);
+    std::nth_element(thick.begin(), q, thick.end());
+    est.thickness_mm = *q;
+  }
   return est;
 }
 
 double auto_cube_size(const SpacingEstimate& s) {
-  return std::max({s.nearest_mm, 0.75 * s.cross_mm, 3.0 * s.thickness_mm});
+  return std::max({s.nearest_mm, 0.75 * s.cross_mm, 10.0 * s.thickness_mm});
 }
 
 }  // namespace scanmesh::recon

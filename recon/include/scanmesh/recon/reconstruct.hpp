@@ -22,6 +22,11 @@ struct ReconstructOptions {
   enum class CubeMode { kAuto, kFixed, kNone };
   CubeMode cube_mode = CubeMode::kAuto;  ///< auto: derived from the measured spacing
   double cube_mm = 0;                    ///< cube edge when kFixed (input units), > 0
+  /// Move each cube representative onto the local least-squares plane of the input points
+  /// (radius = project_radius_factor cubes, at most half a cube): collapses noisy multi-view
+  /// shells into one layer.
+  bool project = true;
+  double project_radius_factor = 1.5;
   FrontOptions front;
   NormalOptions normals;
   /// Reports every bad field at once (empty when valid).

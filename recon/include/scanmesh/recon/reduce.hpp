@@ -37,4 +37,23 @@ double auto_cube_size(const SpacingEstimate& s);
 /// ascending order. Deterministic (ties broken by the lower index).
 std::vector<std::uint32_t> cube_reduce(std::span<const Vec3> points, double cube);
 
+/// Minimum-separation thinning after cube reduction: cube reduction can keep two points a
+/// fraction of a cube apart where the sampled shell straddles a cube face (merged views make
+/// such a shell). Points are visited in the given priority order (most central in its cube
+/// first) and dropped when a kept point lies within `min_distance`. Returns kept indices into
+/// `points`, ascending.
+std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
+                                             std::span<const std::uint32_t> priority,
+                                             double min_distance);
+
+/// Moves each representative onto the least-squares plane of the input points within `radius`
+/// of it (first-order MLS projection), so a noisy multi-view shell becomes one thin layer.
+/// A point moves at most `max_move`; points with fewer than 6 neighbours stay where they are.
+std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
+                                          std::span<const std::uint32_t> representatives,
+                                          double radius, double max_move);
+
+/// cube_reduce followed by thin_min_distance(0.5 * cube) in cube-centre order.
+std::vector<std::uint32_t> cube_reduce_thin(std::span<const Vec3> points, double cube);
+
 }  // namespace scanmesh::recon
