@@ -21,5 +21,6 @@ using Runner = std::function<int()>;
 void add_reconstruct_command(CLI::App& app, Runner& run);
 void add_inspect_command(CLI::App& app, Runner& run);
 void add_deviation_command(CLI::App& app, Runner& run);
+void add_generate_command(CLI::App& app, Runner& run);
 
 }  // namespace scanmesh::cli

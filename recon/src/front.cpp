@@ -128,6 +128,12 @@ class Builder {
     head_out_.assign(n, kNone);
     valence_.assign(n, 0);
     tris_.reserve(n * 2 + 16);
+    if (n > 0) {
+      std::vector<float> sp = frames.spacing;
+      auto mid = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2);
+      std::nth_element(sp.begin(), mid, sp.end());
+      max_spacing_ = kMaxSparsity * static_cast<double>(*mid);
+    }
   }
 
   FrontResult run();
@@ -186,7 +192,11 @@ class Builder {
     Vec3 n = f_.normal[v].cast<double>();
     return n.dot(ref) < 0 ? -n : n;
   }
-  [[nodiscard]] double spacing(std::uint32_t v) const { return f_.spacing[v]; }
+  /// Local spacing, capped at kMaxSparsity x the median so that the sparse fringe of a scan
+  /// (grazing angles) cannot pull triangles many spacings long.
+  [[nodiscard]] double spacing(std::uint32_t v) const {
+    return std::min<double>(f_.spacing[v], max_spacing_);
+  }
 
   /// Unmeshed angle at the end vertex b of edge e (between e and its successor).
   [[nodiscard]] double front_angle_at_end(std::uint32_t eid) const {
@@ -231,9 +241,11 @@ class Builder {
   void add_triangle(std::uint32_t eid, std::uint32_t p);
   void grow();
   void fill_small_loops();
-  void repair_fans();
+  std::size_t repair_fans();
   void orient_components();
 
+  static constexpr double kMaxSparsity = 2.5;
+  double max_spacing_ = 0;
   std::span<const Vec3> p_;
   const LocalFrames& f_;
   const PointGrid& grid_;
@@ -420,7 +432,7 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   const Vec3 mid = 0.5 * (pa + pb);
   const double lab = (pb - pa).norm();
   const double base = std::max(spacing(a), spacing(b));
-  const double gather = mode.radius_factor * base * 1.2;
+  const double gather = mode.radius_factor * base * 1.5;
   cand_.clear();
   near_front_.clear();
   ++res_.edge_evaluations;
@@ -431,7 +443,9 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
     if (j == a || j == b || j == x) return;
     if (st != VertexState::kFree && st != VertexState::kFront) return;
     const Vec3& pj = p_[j];
-    const double r = std::min(gather, mode.radius_factor * std::max<double>(base, spacing(j)));
+    // A sparser candidate may reach a little further, but never more than 1.5x the edge's own
+    // spacing: an isolated point must not pull long triangles across a gap.
+    const double r = std::min(gather, mode.radius_factor * std::clamp<double>(spacing(j), base, 1.5 * base));
     const Vec3 ua = pj - pa, ub = pj - pb;
     const double la2 = ua.squaredNorm(), lb2 = ub.squaredNorm();
     if (la2 > r * r || lb2 > r * r || la2 == 0 || lb2 == 0) return;
@@ -648,7 +662,8 @@ void Builder::fill_small_loops() {
   }
 }
 
-void Builder::repair_fans() {
+std::size_t Builder::repair_fans() {
+  std::size_t total = 0;
   // A vertex whose triangles form several fans is non-manifold: keep its largest fan.
   for (int round = 0; round < 8; ++round) {
     const std::size_t n = p_.size();
@@ -700,12 +715,14 @@ void Builder::repair_fans() {
         }
     }
     if (removed == 0) break;
+    total += removed;
     std::size_t w = 0;
     for (std::size_t t = 0; t < tris_.size(); ++t)
       if (!dead[t]) tris_[w++] = tris_[t];
     tris_.resize(w);
     res_.removed_fan_triangles += removed;
   }
+  return total;
 }
 
 void Builder::orient_components() {
@@ -774,8 +791,10 @@ FrontResult Builder::run() {
     if (state_[s] != VertexState::kFree) continue;
     if (try_seed(s)) grow();
   }
+  // Close sampling gaps, then keep vertices manifold; repairs can open small gaps again, so
+  // one more round of each.
   fill_small_loops();
-  repair_fans();
+  for (int round = 0; round < 3 && repair_fans() > 0; ++round) fill_small_loops();
   orient_components();
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);

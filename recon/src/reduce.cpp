@@ -134,7 +134,7 @@ std::vector<std::uint32_t> cube_reduce_thin(std::span<const Vec3> points, double
   std::sort(order.begin(), order.end());
   std::vector<std::uint32_t> prio(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) prio[i] = order[i].second;
-  return thin_min_distance(points, prio, 0.5 * cube);
+  return thin_min_distance(points, prio, 0.65 * cube);
 }
 
 }  // namespace scanmesh::recon

@@ -88,17 +88,17 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
         h[static_cast<Eigen::Index>(m)] = d.x();
       }
       const Eigen::VectorXd coef = a.colPivHouseholderQr().solve(h);
-      const double rss = (a * coef - h).squaredNorm();
-      thick.push_back(std::sqrt(rss / static_cast<double>(k - 6)));
+      const Eigen::VectorXd r = a * coef - h;
+      thick.push_back(std::sqrt(r.squaredNorm() / static_cast<double>(k - 6)));
     }
   }
   est.sampled = d1s.size();
   est.nearest_mm = median(d1s);
   est.cross_mm = d2s.empty() ? est.nearest_mm : median(d2s);
-  // Lowest decile: noise thickens every neighbourhood alike, while sharp features and
-  // thin walls thicken only some; the decile measures the noise and ignores the features.
+  // Lower quartile: noise thickens every neighbourhood alike, while sharp features and
+  // thin walls thicken only some; the quartile measures the noise and ignores the features.
   if (!thick.empty()) {
-    auto q = thick.begin() + static_cast<std::ptrdiff_t>(thick.size() / 10);
+    auto q = thick.begin() + static_cast<std::ptrdiff_t>(thick.size() / 4);
     std::nth_element(thick.begin(), q, thick.end());
     est.thickness_mm = *q;
   }
@@ -106,7 +106,7 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
 }
 
 double auto_cube_size(const SpacingEstimate& s) {
-  return std::max({s.nearest_mm, 0.75 * s.cross_mm, 10.0 * s.thickness_mm});
+  return std::max({s.nearest_mm, 0.75 * s.cross_mm, 14.0 * s.thickness_mm});
 }
 
 }  // namespace scanmesh::recon
