@@ -1,1 +1,524 @@
+// End-to-end tests of the `scanmesh` command-line tool: runs the real binary on files in a fresh
+// temporary directory and checks exit statuses, messages, JSON figures and the files written.
+// SPDX-License-Identifier: MIT
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
 #include <catch2/catch.hpp>
+#include <csignal>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/mesh.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+/// A fresh directory under the system temp dir, removed with everything in it at scope exit.
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = (fs::temp_directory_path() / "scanmesh_test_cli.XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  [[nodiscard]] fs::path operator/(const std::string& name) const { return path_ / name; }
+  [[nodiscard]] const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+struct RunResult {
+  int status = -1;  ///< exit status, or 128 + signal number when killed by a signal
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void spit(const fs::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+}
+
+/// Runs SCANMESH_EXE with `args`, stdout and stderr captured through files in `dir`. With
+/// `max_file_bytes` the child gets RLIMIT_FSIZE (and ignores SIGXFSZ), so every write past that
+/// size fails with EFBIG: a disk-full failure that works even when the tests run as root.
+RunResult run(const TempDir& dir, const std::vector<std::string>& args,
+              std::optional<rlim_t> max_file_bytes = std::nullopt) {
+  static std::atomic<int> counter{0};
+  const int n = counter++;
+  const fs::path out_file = dir / (".stdout." + std::to_string(n));
+  const fs::path err_file = dir / (".stderr." + std::to_string(n));
+  std::vector<std::string> argv_s{SCANMESH_EXE};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    const int fo = ::open(out_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fe = ::open(err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fo < 0 || fe < 0 || ::dup2(fo, 1) < 0 || ::dup2(fe, 2) < 0) ::_exit(126);
+    if (max_file_bytes) {
+      ::signal(SIGXFSZ, SIG_IGN);  // stays ignored across exec
+      const rlimit lim{*max_file_bytes, *max_file_bytes};
+      if (::setrlimit(RLIMIT_FSIZE, &lim) != 0) ::_exit(126);
+    }
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  int wstatus = 0;
+  while (::waitpid(pid, &wstatus, 0) < 0) {
+    if (errno != EINTR) throw std::runtime_error("waitpid failed");
+  }
+  RunResult r;
+  r.status = WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : 128 + WTERMSIG(wstatus);
+  r.out = slurp(out_file);
+  r.err = slurp(err_file);
+  fs::remove(out_file);
+  fs::remove(err_file);
+  return r;
+}
+
+std::string describe(const RunResult& r) {
+  return "status " + std::to_string(r.status) + "\nstdout: " + r.out + "\nstderr: " + r.err;
+}
+
+/// The one JSON object a --json run prints (the last line starting with '{').
+json json_of(const RunResult& r) {
+  std::istringstream lines(r.out);
+  std::string line, last;
+  while (std::getline(lines, line))
+    if (!line.empty() && line.front() == '{') last = line;
+  INFO(describe(r));
+  REQUIRE(!last.empty());
+  return json::parse(last);
+}
+
+/// Files in `dir` whose name starts with `prefix`.
+std::vector<std::string> files_starting_with(const fs::path& dir, const std::string& prefix) {
+  std::vector<std::string> found;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) == 0) found.push_back(name);
+  }
+  return found;
+}
+
+/// A sphere scan the reconstruction closes (radius 20 mm, 1 mm spacing: about 5000 points).
+fs::path generate_sphere(const TempDir& dir) {
+  const fs::path xyz = dir / "sphere.xyz";
+  const RunResult r = run(dir, {"generate", "--part", "sphere", "--spacing", "1", "-o", xyz});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  return xyz;
+}
+
+/// Unit cube, outward oriented: 8 vertices, 12 triangles, volume 1.
+scanmesh::recon::Mesh unit_cube() {
+  scanmesh::recon::Mesh m;
+  for (int i = 0; i < 8; ++i) m.vertices.emplace_back(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+  m.triangles = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                 {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("reconstruct a generated sphere: JSON figures and a closed mesh", "[cli]") {
+  TempDir dir;
+  const fs::path xyz = generate_sphere(dir);
+  const fs::path stl = dir / "sphere.stl";
+  const RunResult r = run(dir, {"reconstruct", xyz, "-o", stl, "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  for (const char* key : {"input_points", "reduced_points", "vertices", "triangles",
+                          "boundary_loops", "components", "outliers", "seconds_total", "seconds"}) {
+    INFO(key);
+    CHECK(j.contains(key));
+  }
+  CHECK(j["input_points"].get<std::size_t>() > 4000);
+  CHECK(j["reduced_points"].get<std::size_t>() <= j["input_points"].get<std::size_t>());
+  CHECK(j["triangles"].get<std::size_t>() > 1000);
+  CHECK(j["boundary_loops"] == 0);
+  CHECK(j["components"] == 1);
+  CHECK(j["seconds_total"].is_number());
+  REQUIRE(j["seconds"].is_object());
+  CHECK(!j["seconds"].empty());
+  for (const char* stage : {"read", "reduce", "normals", "front", "write"}) {
+    INFO(stage);
+    CHECK(j["seconds"].contains(stage));
+    if (j["seconds"].contains(stage)) CHECK(j["seconds"][stage].get<double>() >= 0);
+  }
+  const scanmesh::recon::Mesh mesh = scanmesh::meshio::read_mesh(stl);
+  CHECK(mesh.triangles.size() == j["triangles"].get<std::size_t>());
+  CHECK(mesh.vertices.size() == j["vertices"].get<std::size_t>());
+
+  SECTION("the text summary names the output") {
+    const RunResult t = run(dir, {"reconstruct", xyz, "-o", dir / "text.stl"});
+    INFO(describe(t));
+    CHECK(t.status == 0);
+    CHECK_THAT(t.out, Catch::Contains("text.stl"));
+    CHECK_THAT(t.out, Catch::Contains("boundary loops"));
+  }
+}
+
+TEST_CASE("reconstruct writes .stl .ply .obj by extension and --ascii STL", "[cli]") {
+  TempDir dir;
+  const fs::path xyz = generate_sphere(dir);
+  for (const std::string ext : {".stl", ".ply", ".obj"}) {
+    INFO(ext);
+    const fs::path out = dir / ("mesh" + ext);
+    const RunResult r = run(dir, {"reconstruct", xyz, "-o", out, "--json"});
+    INFO(describe(r));
+    REQUIRE(r.status == 0);
+    const json j = json_of(r);
+    const scanmesh::recon::Mesh mesh = scanmesh::meshio::read_mesh(out);
+    CHECK(mesh.triangles.size() == j["triangles"].get<std::size_t>());
+    CHECK(files_starting_with(dir.path(), "mesh" + ext + ".tmp").empty());
+  }
+  const fs::path ascii = dir / "ascii.stl";
+  const RunResult r = run(dir, {"reconstruct", xyz, "-o", ascii, "--ascii", "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  CHECK(slurp(ascii).rfind("solid", 0) == 0);
+  CHECK(scanmesh::meshio::read_mesh(ascii).triangles.size() ==
+        json_of(r)["triangles"].get<std::size_t>());
+  // The default STL is binary: an 80-byte header, a count, 50 bytes per triangle.
+  const std::string binary = slurp(dir / "mesh.stl");
+  CHECK(binary.size() == 84 + 50 * scanmesh::meshio::read_mesh(dir / "mesh.stl").triangles.size());
+}
+
+TEST_CASE("usage errors exit 2", "[cli]") {
+  TempDir dir;
+  spit(dir / "p.xyz", "0 0 0\n1 0 0\n0 1 0\n0 0 1\n");
+  const std::string in = dir / "p.xyz";
+  const std::string out = dir / "out.stl";
+  const std::vector<std::pair<std::string, std::vector<std::string>>> cases{
+      {"no subcommand", {}},
+      {"unknown subcommand", {"frobnicate"}},
+      {"missing -o", {"reconstruct", in}},
+      {"--cube banana", {"reconstruct", in, "-o", out, "--cube", "banana"}},
+      {"--cube -1", {"reconstruct", in, "-o", out, "--cube", "-1"}},
+      {"--min-angle 90", {"reconstruct", in, "-o", out, "--min-angle", "90"}},
+      {"unknown flag", {"reconstruct", in, "-o", out, "--frobnicate"}},
+      {"inspect without mesh", {"inspect"}},
+      {"deviation without --ref", {"deviation", out}},
+      {"generate without part", {"generate", "-o", dir / "g.xyz"}},
+      {"generate unknown part", {"generate", "--part", "banana", "-o", dir / "g.xyz"}},
+      {"generate --part and --mesh-in",
+       {"generate", "--part", "sphere", "--mesh-in", out, "-o", dir / "g.xyz"}},
+      {"generate --spacing 0", {"generate", "--part", "sphere", "--spacing", "0", "-o", out}},
+      {"generate --noise -1", {"generate", "--part", "sphere", "--noise", "-1", "-o", out}},
+      {"generate without -o", {"generate", "--part", "sphere"}},
+  };
+  for (const auto& [name, args] : cases) {
+    INFO(name);
+    const RunResult r = run(dir, args);
+    INFO(describe(r));
+    CHECK(r.status == 2);
+    CHECK(!r.err.empty());
+  }
+  CHECK(!fs::exists(out));
+  CHECK(!fs::exists(dir / "g.xyz"));
+  // The unknown part's message lists the valid ones.
+  const RunResult r = run(dir, {"generate", "--part", "banana", "-o", dir / "g.xyz"});
+  CHECK_THAT(r.err, Catch::Contains("container") && Catch::Contains("sphere"));
+}
+
+TEST_CASE("bad input exits 3 with a message naming the file", "[cli]") {
+  TempDir dir;
+  const std::string out = dir / "out.stl";
+  auto check_input_error = [&](const std::string& file, const std::string& why) {
+    INFO(why);
+    const RunResult r = run(dir, {"reconstruct", file, "-o", out});
+    INFO(describe(r));
+    CHECK(r.status == 3);
+    CHECK_THAT(r.err,
+               Catch::Contains(fs::path(file).filename().string()) || Catch::Contains("point"));
+    CHECK(!fs::exists(out));
+    return r;
+  };
+  check_input_error(dir / "missing.xyz", "missing file");
+
+  spit(dir / "bad.xyz", "1 2 3\n4 5 6\n7 eight 9\n1 1 1\n");
+  const RunResult bad = check_input_error(dir / "bad.xyz", "malformed line");
+  CHECK_THAT(bad.err, Catch::Contains("bad.xyz"));
+  CHECK_THAT(bad.err, Catch::Contains("bad.xyz:3") || Catch::Contains("line 3"));
+
+  spit(dir / "empty.xyz", "");
+  check_input_error(dir / "empty.xyz", "empty file");
+
+  spit(dir / "nan.xyz", "1 2 3\nnan 5 6\n7 8 9\n1 1 1\n");
+  const RunResult nan = check_input_error(dir / "nan.xyz", "NaN");
+  CHECK_THAT(nan.err, Catch::Contains("nan.xyz"));
+
+  spit(dir / "two.xyz", "1 2 3\n4 5 6\n");
+  check_input_error(dir / "two.xyz", "two points");
+
+  spit(dir / "cloud.unknown", "1 2 3\n");
+  check_input_error(dir / "cloud.unknown", "unknown extension");
+
+  SECTION("inspect and deviation of a missing or broken mesh") {
+    spit(dir / "broken.stl", "solid x\n  facet normal 0 0 1\n    outer loop\n");
+    for (const std::vector<std::string>& args :
+         {std::vector<std::string>{"inspect", dir / "nope.stl"},
+          std::vector<std::string>{"inspect", dir / "broken.stl"},
+          std::vector<std::string>{"deviation", dir / "nope.stl", "--ref", dir / "nope.stl"},
+          std::vector<std::string>{"generate", "--mesh-in", dir / "nope.stl", "-o",
+                                   dir / "g.xyz"}}) {
+      const RunResult r = run(dir, args);
+      INFO(describe(r));
+      CHECK(r.status == 3);
+    }
+  }
+}
+
+TEST_CASE("unwritable output exits 4 and leaves no file behind", "[cli]") {
+  TempDir dir;
+  const fs::path xyz = generate_sphere(dir);
+
+  SECTION("output in a directory that does not exist") {
+    const fs::path out = dir / "no_such_dir" / "out.stl";
+    const RunResult r = run(dir, {"reconstruct", xyz, "-o", out});
+    INFO(describe(r));
+    CHECK(r.status == 4);
+    CHECK_THAT(r.err, Catch::Contains("out.stl"));
+    CHECK(!fs::exists(out));
+    CHECK(!fs::exists(dir / "no_such_dir"));
+  }
+
+  SECTION("a failing write does not clobber an existing file and removes its temp file") {
+    const fs::path out = dir / "keep.stl";
+    const std::string before = "precious contents that must survive\n";
+    spit(out, before);
+    // The sphere's binary STL is hundreds of kB: writing it fails at 16 kB.
+    const RunResult r = run(dir, {"reconstruct", xyz, "-o", out}, rlim_t{16 * 1024});
+    INFO(describe(r));
+    CHECK(r.status == 4);
+    CHECK_THAT(r.err, Catch::Contains("keep.stl"));
+    CHECK(slurp(out) == before);
+    CHECK(files_starting_with(dir.path(), "keep.stl.").empty());
+  }
+
+  SECTION("the output name is a directory") {
+    const fs::path out = dir / "taken.stl";
+    fs::create_directory(out);
+    const RunResult r = run(dir, {"reconstruct", xyz, "-o", out});
+    INFO(describe(r));
+    CHECK(r.status == 4);
+    CHECK(fs::is_directory(out));
+    CHECK(files_starting_with(dir.path(), "taken.stl.").empty());
+  }
+
+  SECTION("generate into a directory that does not exist") {
+    const RunResult r =
+        run(dir, {"generate", "--part", "sphere", "-o", dir / "no_such_dir" / "g.xyz"});
+    INFO(describe(r));
+    CHECK(r.status == 4);
+  }
+}
+
+TEST_CASE("--cube none keeps more points than --cube auto", "[cli]") {
+  TempDir dir;
+  const fs::path xyz = generate_sphere(dir);
+  const RunResult a = run(dir, {"reconstruct", xyz, "-o", dir / "a.stl", "--json"});
+  const RunResult n =
+      run(dir, {"reconstruct", xyz, "-o", dir / "n.stl", "--json", "--cube", "none"});
+  INFO(describe(a));
+  INFO(describe(n));
+  REQUIRE(a.status == 0);
+  REQUIRE(n.status == 0);
+  const json ja = json_of(a), jn = json_of(n);
+  CHECK(jn["input_points"] == ja["input_points"]);
+  CHECK(jn["reduced_points"].get<std::size_t>() > ja["reduced_points"].get<std::size_t>());
+  CHECK(jn["reduced_points"].get<std::size_t>() <= jn["input_points"].get<std::size_t>());
+}
+
+TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
+  TempDir dir;
+  const fs::path cube = dir / "cube.ply";
+  scanmesh::meshio::write_mesh(unit_cube(), cube);
+  const RunResult r = run(dir, {"inspect", cube, "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  std::istringstream keys(
+      "vertices referenced_vertices triangles degenerate_triangles "
+      "duplicate_triangles edges boundary_edges non_manifold_edges "
+      "non_manifold_vertices inconsistent_edges orientation_consistent "
+      "boundary_loops boundary_loop_lengths components euler_characteristic "
+      "genus angle_min_deg angle_max_deg angle_mean_deg "
+      "frac_min_angle_below_10 frac_min_angle_below_20 mean_edge_length "
+      "max_edge_length signed_volume");
+  for (std::string key; keys >> key;) {
+    INFO(key);
+    CHECK(j.contains(key));
+  }
+  CHECK(j["vertices"] == 8);
+  CHECK(j["triangles"] == 12);
+  CHECK(j["edges"] == 18);
+  CHECK(j["boundary_edges"] == 0);
+  CHECK(j["boundary_loops"] == 0);
+  CHECK(j["non_manifold_edges"] == 0);
+  CHECK(j["orientation_consistent"] == true);
+  CHECK(j["components"] == 1);
+  CHECK(j["euler_characteristic"] == 2);
+  CHECK(j["genus"] == 0);
+  CHECK(j["signed_volume"].get<double>() == Approx(1.0));
+  CHECK(j["angle_min_deg"].get<double>() == Approx(45.0));
+  CHECK(j["angle_max_deg"].get<double>() == Approx(90.0));
+
+  SECTION("an open square: one boundary loop of four edges") {
+    scanmesh::recon::Mesh sq;
+    sq.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+    sq.triangles = {{0, 1, 2}, {0, 2, 3}};
+    scanmesh::meshio::write_mesh(sq, dir / "square.obj");
+    const json s = json_of(run(dir, {"inspect", dir / "square.obj", "--json"}));
+    CHECK(s["boundary_loops"] == 1);
+    CHECK(s["boundary_edges"] == 4);
+    CHECK(s["boundary_loop_lengths"] == json::array({4}));
+  }
+  SECTION("the text report") {
+    const RunResult t = run(dir, {"inspect", cube});
+    CHECK(t.status == 0);
+    CHECK_THAT(t.out, Catch::Contains("genus"));
+  }
+}
+
+TEST_CASE("built-in parts are closed manifolds of the documented genus", "[cli]") {
+  TempDir dir;
+  const std::vector<std::pair<std::string, int>> parts{
+      {"container", 2}, {"sphere", 0}, {"cylinder", 0}, {"steps", 0}};
+  for (const auto& [part, genus] : parts) {
+    INFO(part);
+    const fs::path ref = dir / (part + ".stl");
+    const RunResult g = run(
+        dir, {"generate", "--part", part, "--spacing", "4", "-o", dir / "p.xyz", "--mesh", ref});
+    INFO(describe(g));
+    REQUIRE(g.status == 0);
+    const json j = json_of(run(dir, {"inspect", ref, "--json"}));
+    CHECK(j["boundary_loops"] == 0);
+    CHECK(j["non_manifold_edges"] == 0);
+    CHECK(j["non_manifold_vertices"] == 0);
+    CHECK(j["orientation_consistent"] == true);
+    CHECK(j["degenerate_triangles"] == 0);
+    CHECK(j["components"] == 1);
+    CHECK(j["genus"] == genus);
+    CHECK(j["signed_volume"].get<double>() > 0);
+    CHECK(j["angle_min_deg"].get<double>() > 20);  // no needles
+  }
+}
+
+TEST_CASE("deviation --json of a mesh against itself is zero", "[cli]") {
+  TempDir dir;
+  const fs::path ref = dir / "ref.stl";
+  REQUIRE(run(dir, {"generate", "--part", "cylinder", "--spacing", "4", "-o", dir / "p.xyz",
+                    "--mesh", ref})
+              .status == 0);
+  const fs::path png = dir / "dev.png";
+  const RunResult r = run(dir, {"deviation", ref, "--ref", ref, "--json", "--png", png});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  for (const char* key : {"mesh_to_ref", "ref_to_mesh"}) {
+    INFO(key);
+    REQUIRE(j.contains(key));
+    for (const char* stat : {"count", "mean", "rms", "p95", "max"}) CHECK(j[key].contains(stat));
+    CHECK(j[key]["count"].get<std::size_t>() > 0);
+    CHECK(j[key]["max"].get<double>() < 1e-6);
+    CHECK(j[key]["rms"].get<double>() < 1e-6);
+  }
+  CHECK(j["hausdorff"].get<double>() < 1e-6);
+  CHECK(j["png"] == png.string());
+  CHECK(slurp(png).rfind("\x89PNG", 0) == 0);
+}
+
+TEST_CASE("generate is deterministic and documents its figures", "[cli]") {
+  TempDir dir;
+  auto gen = [&](const std::string& name, const std::vector<std::string>& extra) {
+    std::vector<std::string> args{"generate", "--part", "container", "--spacing",
+                                  "1.5",      "-o",     dir / name,  "--json"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const RunResult r = run(dir, args);
+    INFO(describe(r));
+    REQUIRE(r.status == 0);
+    return json_of(r);
+  };
+  const json a = gen("a.xyz", {"--seed", "7"});
+  gen("b.xyz", {"--seed", "7"});
+  gen("c.xyz", {"--seed", "8"});
+  const json na = gen("na.xyz", {"--seed", "7", "--noise", "0.05"});
+  gen("nb.xyz", {"--seed", "7", "--noise", "0.05"});
+
+  CHECK(slurp(dir / "a.xyz") == slurp(dir / "b.xyz"));
+  CHECK(slurp(dir / "a.xyz") != slurp(dir / "c.xyz"));
+  CHECK(slurp(dir / "na.xyz") == slurp(dir / "nb.xyz"));
+  CHECK(slurp(dir / "na.xyz") != slurp(dir / "a.xyz"));
+
+  for (const char* key : {"part", "points", "spacing", "noise", "seed", "output", "mesh"}) {
+    INFO(key);
+    CHECK(a.contains(key));
+  }
+  CHECK(a["part"] == "container");
+  CHECK(a["seed"] == 7);
+  CHECK(a["spacing"].get<double>() == Approx(1.5));
+  CHECK(a["noise"].get<double>() == 0);
+  CHECK(a["output"] == (dir / "a.xyz").string());
+  CHECK(a["mesh"].is_null());
+  CHECK(na["noise"].get<double>() == Approx(0.05));
+  CHECK(na["points"] == a["points"]);  // noise moves points, it does not add any
+  // About area / spacing^2 points (the container's surface is about 13000 mm^2).
+  const auto count = a["points"].get<std::size_t>();
+  const auto lines = scanmesh::meshio::read_points(dir / "a.xyz").points.size();
+  CHECK(lines == count);
+  CHECK(count > 13000 / (1.5 * 1.5) * 0.9);
+  CHECK(count < 14000 / (1.5 * 1.5) * 1.1);
+
+  SECTION("--mesh-in samples a given mesh; --points sets the count") {
+    scanmesh::meshio::write_mesh(unit_cube(), dir / "cube.stl");
+    const RunResult r = run(dir, {"generate", "--mesh-in", dir / "cube.stl", "--spacing", "0.1",
+                                  "-o", dir / "cube.xyz", "--json"});
+    INFO(describe(r));
+    REQUIRE(r.status == 0);
+    const json j = json_of(r);
+    CHECK(j["part"].is_null());
+    CHECK(j["points"].get<double>() == Approx(600).margin(12));  // 6 mm^2 / 0.01 mm^2
+    for (const auto& p : scanmesh::meshio::read_points(dir / "cube.xyz").points) {
+      CHECK(p.minCoeff() >= -1e-9);
+      CHECK(p.maxCoeff() <= 1 + 1e-9);
+    }
+    const json k = json_of(run(dir, {"generate", "--mesh-in", dir / "cube.stl", "--points", "2400",
+                                     "-o", dir / "cube2.xyz", "--json"}));
+    CHECK(k["spacing"].get<double>() == Approx(0.05));
+    CHECK(k["points"].get<double>() == Approx(2400).margin(24));
+  }
+}
