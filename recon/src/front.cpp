@@ -243,6 +243,7 @@ class Builder {
   void fill_small_loops();
   std::size_t repair_fans();
   void orient_components();
+  void rebuild_front();
 
   static constexpr double kMaxSparsity = 2.5;
   double max_spacing_ = 0;
@@ -725,6 +726,56 @@ std::size_t Builder::repair_fans() {
   return total;
 }
 
+void Builder::rebuild_front() {
+  // Every undirected edge with its triangle count; boundary half-edges become the new front.
+  edges_.clear();
+  free_edges_.clear();
+  edges_map_ = EdgeMap(tris_.size() * 2);
+  std::fill(head_out_.begin(), head_out_.end(), kNone);
+  std::fill(valence_.begin(), valence_.end(), std::uint8_t{0});
+  while (!queue_.empty()) queue_.pop();
+  deferred_.clear();
+  struct Half {
+    std::uint64_t key;
+    std::uint32_t a, b, opp;
+  };
+  std::vector<Half> half;
+  half.reserve(tris_.size() * 3);
+  for (const Triangle& t : tris_)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)],
+                          c = t[static_cast<std::size_t>((k + 2) % 3)];
+      half.push_back({a < b ? (std::uint64_t{a} << 32) | b : (std::uint64_t{b} << 32) | a, a, b, c});
+    }
+  std::sort(half.begin(), half.end(), [](const Half& l, const Half& r) {
+    return l.key != r.key ? l.key < r.key : l.a < r.a;
+  });
+  for (std::size_t i = 0; i < half.size();) {
+    std::size_t j = i;
+    while (j < half.size() && half[j].key == half[i].key) ++j;
+    const Half& h = half[i];
+    ++valence_[h.a];
+    ++valence_[h.b];
+    if (j - i == 1) {
+      new_edge(h.a, h.b, h.opp);  // inserts the map entry and the out-list link
+    } else {
+      edges_map_.insert(h.a, h.b, kInterior);
+    }
+    i = j;
+  }
+  // Link loops: after repair_fans every vertex has one fan, hence at most one outgoing edge.
+  for (std::uint32_t id = 0; id < edges_.size(); ++id) {
+    const std::uint32_t nx = head_out_[edges_[id].b];
+    edges_[id].next = nx;
+    edges_[nx].prev = id;
+  }
+  for (std::uint32_t v = 0; v < state_.size(); ++v) {
+    if (valence_[v] == 0) continue;
+    update_state(v);
+  }
+  for (std::uint32_t id = 0; id < edges_.size(); ++id) push(id);
+}
+
 void Builder::orient_components() {
   // Components by union-find over shared vertices (fans are single after repair_fans).
   const std::size_t n = p_.size();
@@ -794,7 +845,12 @@ FrontResult Builder::run() {
   // Close sampling gaps, then keep vertices manifold; repairs can open small gaps again, so
   // one more round of each.
   fill_small_loops();
-  for (int round = 0; round < 3 && repair_fans() > 0; ++round) fill_small_loops();
+  // Dropping fans opens small gaps: rebuild the front from the mesh and let it close them.
+  for (int round = 0; round < 3 && repair_fans() > 0; ++round) {
+    rebuild_front();
+    grow();
+    fill_small_loops();
+  }
   orient_components();
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);
