@@ -184,6 +184,18 @@ class Builder {
   [[nodiscard]] Vec3 tri_normal(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
     return (p_[b] - p_[a]).cross(p_[c] - p_[a]);
   }
+  /// Cosine of the smallest interior angle of triangle (a, b, c) (1 when degenerate).
+  [[nodiscard]] double min_angle_cos(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
+    const Vec3* q[3] = {&p_[a], &p_[b], &p_[c]};
+    double worst = -1;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 u = *q[(k + 1) % 3] - *q[k], w = *q[(k + 2) % 3] - *q[k];
+      const double den = u.norm() * w.norm();
+      if (den == 0) return 1.0;
+      worst = std::max(worst, u.dot(w) / den);
+    }
+    return worst;
+  }
   [[nodiscard]] Vec3 edge_normal(const FrontEdge& e) const {
     return tri_normal(e.a, e.b, e.opp).normalized();
   }
@@ -244,6 +256,7 @@ class Builder {
   std::size_t repair_fans();
   void orient_components();
   void rebuild_front();
+  void split_flat_triangle_holes();
 
   static constexpr double kMaxSparsity = 2.5;
   double max_spacing_ = 0;
@@ -606,6 +619,7 @@ void Builder::grow() {
 
 void Builder::fill_small_loops() {
   // Walk every remaining loop once; close small ones by clipping their sharpest ears.
+  const double cos_fill_angle = std::cos(0.05 * kPi / 180);  // only truly flat ears refused
   std::vector<std::uint32_t> loop;
   const std::size_t initial = edges_.size();
   std::vector<std::uint8_t> seen(initial, 0);
@@ -637,12 +651,16 @@ void Builder::fill_small_loops() {
         it = edges_[it].next;
       } while (it != cur && ring.size() < 64);
       if (ring.size() < 3) break;
+      // A 3-loop around a single triangle (an isolated triangle's rim) must stay open:
+      // closing it would duplicate that triangle with the opposite orientation.
+      if (ring.size() == 3 && edges_[ring[0]].opp == edges_[ring[1]].b) break;
       std::uint32_t best = kNone;
       double best_angle = 1e9;
       for (std::uint32_t r : ring) {
         const FrontEdge& fe = edges_[r];
         const std::uint32_t c = edges_[fe.next].b;
         if (ring.size() > 3 && edges_map_.find(fe.a, c) != nullptr) continue;
+        if (min_angle_cos(fe.a, fe.b, c) > cos_fill_angle) continue;  // no slivers
         const double ang = front_angle_at_end(r);
         if (ang < best_angle) {
           best_angle = ang;
@@ -724,6 +742,47 @@ std::size_t Builder::repair_fans() {
     res_.removed_fan_triangles += removed;
   }
   return total;
+}
+
+void Builder::split_flat_triangle_holes() {
+  // A 3-edge hole whose corners are collinear (points on a straight feature line) cannot take a
+  // triangle of its own; the triangle across its long edge is split at the middle corner.
+  rebuild_front();
+  for (std::uint32_t id = 0; id < edges_.size(); ++id) {
+    const FrontEdge& e0 = edges_[id];
+    if (!e0.alive) continue;
+    const FrontEdge& e1 = edges_[e0.next];
+    const FrontEdge& e2 = edges_[e1.next];
+    if (e2.next != id || min_angle_cos(e0.a, e0.b, e1.b) <= std::cos(0.05 * kPi / 180)) continue;
+    // The middle corner is the one with the widest angle; the long edge is the other one.
+    const std::uint32_t loop[3] = {id, e0.next, e1.next};
+    std::uint32_t mid = kNone, long_edge = kNone;
+    for (int k = 0; k < 3; ++k) {
+      const FrontEdge& in = edges_[loop[k]];
+      const FrontEdge& out = edges_[in.next];
+      const Vec3 u = p_[in.a] - p_[in.b], w = p_[out.b] - p_[out.a];
+      if (u.dot(w) < 0) {  // angle at in.b above 90 degrees: the middle corner
+        mid = in.b;
+        long_edge = out.next;
+      }
+    }
+    if (mid == kNone) continue;
+    const FrontEdge& le = edges_[long_edge];  // z -> x, triangle (z, x, o) behind it
+    const std::uint32_t z = le.a, x = le.b, o = le.opp;
+    if (o == mid) continue;
+    for (Triangle& t : tris_) {
+      for (int r = 0; r < 3; ++r) {
+        if (t[static_cast<std::size_t>(r)] == z && t[static_cast<std::size_t>((r + 1) % 3)] == x &&
+            t[static_cast<std::size_t>((r + 2) % 3)] == o) {
+          t = {z, mid, o};
+          tris_.push_back({mid, x, o});
+          ++res_.filled_gaps;
+          goto next_loop;
+        }
+      }
+    }
+  next_loop:;
+  }
 }
 
 void Builder::rebuild_front() {
@@ -846,11 +905,18 @@ FrontResult Builder::run() {
   // one more round of each.
   fill_small_loops();
   // Dropping fans opens small gaps: rebuild the front from the mesh and let it close them.
-  for (int round = 0; round < 3 && repair_fans() > 0; ++round) {
+  for (int round = 0; round < 2 && repair_fans() > 0; ++round) {
     rebuild_front();
     grow();
     fill_small_loops();
   }
+  // The last word: every vertex keeps a single fan; gaps this opens are closed by ear clipping
+  // only, which cannot create new multi-fan vertices.
+  for (int round = 0; round < 3 && repair_fans() > 0; ++round) {
+    rebuild_front();
+    fill_small_loops();
+  }
+  split_flat_triangle_holes();
   orient_components();
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);

@@ -42,7 +42,7 @@ void check_input(std::span<const Vec3> points) {
   for (const Vec3& p : points) cov += (p - mean) * (p - mean).transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov, Eigen::EigenvaluesOnly);
   const Vec3 ev = es.eigenvalues();
-  if (!(ev[2] > 0)) throw GeometryError("all points coincide: no surface");
+  if (!(ev[2] > 0)) throw GeometryError("all points coincide (fewer than 3 distinct points): no surface");
   if (ev[1] <= 1e-18 * ev[2])
     throw GeometryError("all points are collinear: they span no surface");
 }

@@ -1,1 +1,174 @@
+// Reconstruction of synthetic clouds with known topology, degenerate inputs and determinism.
+// SPDX-License-Identifier: MIT
 #include <catch2/catch.hpp>
+#include <cmath>
+#include <limits>
+
+#include "scanmesh/common/error.hpp"
+#include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/reconstruct.hpp"
+#include "support/shapes.hpp"
+
+using scanmesh::GeometryError;
+using scanmesh::recon::analyze;
+using scanmesh::recon::MeshReport;
+using scanmesh::recon::reconstruct;
+using scanmesh::recon::ReconstructOptions;
+using scanmesh::recon::ReconstructResult;
+using scanmesh::recon::Vec3;
+namespace test = scanmesh::test;
+
+namespace {
+
+/// The invariants every output must satisfy (issue #2, "output guarantees").
+void require_valid(const ReconstructResult& r, const MeshReport& rep) {
+  REQUIRE(rep.triangles > 0);
+  CHECK(rep.non_manifold_edges == 0);
+  CHECK(rep.non_manifold_vertices == 0);
+  CHECK(rep.orientation_consistent);
+  CHECK(rep.degenerate_triangles == 0);
+  CHECK(rep.duplicate_triangles == 0);
+  CHECK(rep.referenced_vertices == r.mesh.vertices.size());
+  CHECK(static_cast<double>(r.mesh.vertices.size()) >= 0.99 * static_cast<double>(r.reduced_points));
+}
+
+/// Largest distance of a triangle centroid from the sphere of radius rad at c.
+double max_centroid_error(const scanmesh::recon::Mesh& m, double rad, const Vec3& c) {
+  double worst = 0;
+  for (const auto& t : m.triangles) {
+    const Vec3 g = (m.vertices[t[0]] + m.vertices[t[1]] + m.vertices[t[2]]) / 3.0;
+    worst = std::max(worst, std::abs((g - c).norm() - rad));
+  }
+  return worst;
+}
+
+}  // namespace
+
+TEST_CASE("closed sphere: no boundary, genus 0, outward, close to the surface", "[recon]") {
+  const auto pts = test::sphere_points(20000, 10.0);
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.boundary_loops == 0);
+  CHECK(rep.components == 1);
+  CHECK(rep.genus == 0);
+  CHECK(rep.signed_volume > 0);  // outward
+  // Volume within 1% of the ball's; chords cut inside by less than a fraction of the spacing.
+  CHECK(rep.signed_volume == Approx(4.0 / 3.0 * M_PI * 1000.0).epsilon(0.01));
+  CHECK(max_centroid_error(r.mesh, 10.0, Vec3::Zero()) < 0.5 * r.cube_mm);
+  CHECK(rep.frac_min_angle_below_10 < 0.001);
+}
+
+TEST_CASE("sphere with one cap removed has exactly one boundary loop", "[recon]") {
+  std::vector<Vec3> pts;
+  for (const Vec3& p : test::sphere_points(20000, 10.0))
+    if (p.z() < 7.0) pts.push_back(p);
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.boundary_loops == 1);
+  CHECK(rep.components == 1);
+  CHECK(rep.genus == 0);
+  // The loop runs along the cut: every boundary vertex is near z = 7.
+  CHECK(rep.boundary_loop_lengths.front() > 50);
+}
+
+TEST_CASE("open cylinder as a 5:1 anisotropic raster scan has exactly two loops", "[recon]") {
+  // Rings every 1 mm along the axis, samples every 0.2 mm along each ring.
+  const auto pts = test::cylinder_raster(10.0, 20.0, 0.2, 1.0);
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.boundary_loops == 2);
+  CHECK(rep.components == 1);
+  CHECK(rep.genus == 0);
+  // No triangle spans more than two scan lines.
+  CHECK(rep.max_edge_length < 2.5);
+}
+
+TEST_CASE("cube with sharp edges closes", "[recon]") {
+  const auto pts = test::cube_points(10.0, 0.25);
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.boundary_loops == 0);
+  CHECK(rep.components == 1);
+  CHECK(rep.genus == 0);
+  CHECK(rep.signed_volume == Approx(1000.0).epsilon(0.01));
+}
+
+TEST_CASE("two separate objects give two closed components", "[recon]") {
+  auto pts = test::sphere_points(5000, 5.0, Vec3(0, 0, 0));
+  const auto b = test::sphere_points(5000, 5.0, Vec3(20, 0, 0));
+  pts.insert(pts.end(), b.begin(), b.end());
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.components == 2);
+  CHECK(rep.boundary_loops == 0);
+  CHECK(rep.signed_volume > 0);
+}
+
+TEST_CASE("noisy sphere still closes", "[recon]") {
+  auto pts = test::sphere_points(20000, 10.0);
+  test::add_noise(pts, 0.03, 7);
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.boundary_loops == 0);
+  CHECK(rep.components == 1);
+  CHECK(max_centroid_error(r.mesh, 10.0, Vec3::Zero()) < r.cube_mm);
+}
+
+TEST_CASE("cube options: none keeps every distinct point, a fixed cube reduces", "[recon]") {
+  auto pts = test::sphere_points(8000, 10.0);
+  pts.push_back(pts.front());  // an exact duplicate collapses even without reduction
+  ReconstructOptions none;
+  none.cube_mode = ReconstructOptions::CubeMode::kNone;
+  const auto rn = reconstruct(pts, none);
+  CHECK(rn.reduced_points == 8000);
+  ReconstructOptions fixed;
+  fixed.cube_mode = ReconstructOptions::CubeMode::kFixed;
+  fixed.cube_mm = 1.0;
+  const auto rf = reconstruct(pts, fixed);
+  CHECK(rf.reduced_points < 8000);
+  CHECK(rf.cube_mm == 1.0);
+  CHECK(analyze(rf.mesh).boundary_loops == 0);
+}
+
+TEST_CASE("reconstruction is deterministic", "[recon]") {
+  auto pts = test::sphere_points(6000, 10.0);
+  test::add_noise(pts, 0.02, 3);
+  const auto a = reconstruct(pts);
+  const auto b = reconstruct(pts);
+  REQUIRE(a.mesh.vertices.size() == b.mesh.vertices.size());
+  CHECK(a.mesh.triangles == b.mesh.triangles);
+  CHECK(a.mesh.vertices == b.mesh.vertices);
+}
+
+TEST_CASE("degenerate inputs give clear errors", "[recon]") {
+  using Catch::Matchers::Contains;
+  const std::vector<Vec3> empty;
+  CHECK_THROWS_WITH(reconstruct(empty), Contains("empty"));
+  CHECK_THROWS_WITH(reconstruct(std::vector<Vec3>{Vec3(1, 2, 3)}), Contains("distinct"));
+  CHECK_THROWS_WITH(reconstruct(std::vector<Vec3>{Vec3(0, 0, 0), Vec3(1, 0, 0)}),
+                    Contains("distinct"));
+  std::vector<Vec3> same(100, Vec3(1, 1, 1));
+  CHECK_THROWS_WITH(reconstruct(same), Contains("distinct"));
+  std::vector<Vec3> line;
+  for (int i = 0; i < 100; ++i) line.emplace_back(i, 2.0 * i, -i);
+  CHECK_THROWS_WITH(reconstruct(line), Contains("collinear"));
+  auto nan = test::sphere_points(100);
+  nan[17].y() = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(reconstruct(nan), Contains("non-finite") && Contains("#17"));
+  auto inf = test::sphere_points(100);
+  inf[3].x() = std::numeric_limits<double>::infinity();
+  CHECK_THROWS_AS(reconstruct(inf), GeometryError);
+  // Three points make exactly one triangle.
+  const auto tri = reconstruct(std::vector<Vec3>{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)});
+  CHECK(tri.mesh.triangles.size() == 1);
+  ReconstructOptions bad;
+  bad.cube_mode = ReconstructOptions::CubeMode::kFixed;
+  bad.cube_mm = -1;
+  CHECK_THROWS_AS(reconstruct(test::sphere_points(100), bad), scanmesh::ConfigError);
+}
