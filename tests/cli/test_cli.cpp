@@ -347,7 +347,7 @@ TEST_CASE("unwritable output exits 4 and leaves no file behind", "[cli]") {
   }
 }
 
-TEST_CASE("--cube none keeps more points than --cube auto", "[cli]") {
+TEST_CASE("reconstruct: cube none keeps more points than cube auto", "[cli]") {
   TempDir dir;
   const fs::path xyz = generate_sphere(dir);
   const RunResult a = run(dir, {"reconstruct", xyz, "-o", dir / "a.stl", "--json"});
