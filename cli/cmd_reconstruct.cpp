@@ -143,6 +143,8 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["relaxed_triangles"] = res.relaxed_triangles;
     j["filled_gaps"] = res.filled_gaps;
     j["removed_fan_triangles"] = res.removed_fan_triangles;
+    j["edge_evaluations"] = res.edge_evaluations;
+    j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;
     j["seconds_total"] = total;
     j["seconds"] = seconds;

@@ -274,6 +274,7 @@ class Builder {
   std::priority_queue<QueueItem, std::vector<QueueItem>, std::greater<>> queue_;
   std::vector<std::uint32_t> deferred_;
   double seq_ = 0;
+  bool front_stale_ = false;  // repair_fans removed triangles; rebuild_front() not yet called
 #ifndef NDEBUG
   bool check_every_step_ = true;
 #else
@@ -683,7 +684,13 @@ void Builder::fill_small_loops() {
 
 std::size_t Builder::repair_fans() {
   std::size_t total = 0;
-  // A vertex whose triangles form several fans is non-manifold: keep its largest fan.
+  // A vertex whose triangles form several fans is non-manifold: keep its largest fan. While the
+  // front matches the mesh, such vertices are exactly those with more than one open sector
+  // (triangles are only ever added in a vertex's open sector), so most calls end here.
+  bool any = false;
+  for (std::uint32_t v = 0; v < head_out_.size() && !any; ++v)
+    any = head_out_[v] != kNone && edges_[head_out_[v]].next_out != kNone;
+  if (!any) return 0;
   for (int round = 0; round < 8; ++round) {
     const std::size_t n = p_.size();
     std::vector<std::uint32_t> start(n + 1, 0);
@@ -740,6 +747,7 @@ std::size_t Builder::repair_fans() {
       if (!dead[t]) tris_[w++] = tris_[t];
     tris_.resize(w);
     res_.removed_fan_triangles += removed;
+    front_stale_ = true;  // triangles went away behind the front's back
   }
   return total;
 }
@@ -747,7 +755,7 @@ std::size_t Builder::repair_fans() {
 void Builder::split_flat_triangle_holes() {
   // A 3-edge hole whose corners are collinear (points on a straight feature line) cannot take a
   // triangle of its own; the triangle across its long edge is split at the middle corner.
-  rebuild_front();
+  if (front_stale_) rebuild_front();
   for (std::uint32_t id = 0; id < edges_.size(); ++id) {
     const FrontEdge& e0 = edges_[id];
     if (!e0.alive) continue;
@@ -786,6 +794,7 @@ void Builder::split_flat_triangle_holes() {
 }
 
 void Builder::rebuild_front() {
+  front_stale_ = false;
   // Every undirected edge with its triangle count; boundary half-edges become the new front.
   edges_.clear();
   free_edges_.clear();
