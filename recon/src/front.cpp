@@ -415,10 +415,15 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   // The new edges must not cross nearby front edges, and no front vertex may lie inside the
   // new triangle (both seen in the triangle's plane, within a band around it).
   const double band = 0.5 * radius;
+  // Bounding sphere of the new triangle: front edges that cannot reach it are skipped cheaply.
+  const Vec3 centre = (pa + pb + pp) / 3.0;
+  const double reach = std::sqrt(std::max({(pa - centre).squaredNorm(), (pb - centre).squaredNorm(),
+                                           (pp - centre).squaredNorm()}));
   for (std::uint32_t v : near_front_) {
     if (state_[v] != VertexState::kFront) continue;
     const double hv = std::abs((p_[v] - pa).dot(n1));
-    if (v != a && v != b && v != p && hv < band && orient(pb, pa, p_[v], n1) > 0 &&
+    const double dv = (p_[v] - centre).norm();  // inside in projection: within reach + band
+    if (v != a && v != b && v != p && hv < band && dv < reach + band && orient(pb, pa, p_[v], n1) > 0 &&
         orient(pa, pp, p_[v], n1) > 0 && orient(pp, pb, p_[v], n1) > 0)
       return false;
     for (std::uint32_t fe = head_out_[v]; fe != kNone; fe = edges_[fe].next_out) {
@@ -426,6 +431,9 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
       if (fe == eid) continue;
       const double hw = std::abs((p_[g.b] - pa).dot(n1));
       if (std::min(hv, hw) > band) continue;
+      // every point of the segment is at least |mid - centre| - length / 2 from the centre
+      const Vec3 gm = 0.5 * (p_[g.a] + p_[g.b]);
+      if ((gm - centre).norm() - 0.5 * (p_[g.b] - p_[g.a]).norm() > reach + band) continue;
       // The other side of a thin wall faces away: its front cannot collide with this one.
       if (tri_normal(g.a, g.b, g.opp).dot(n1) < 0) continue;
       if (!close_a && g.a != a && g.b != a && g.a != p && g.b != p &&
@@ -451,7 +459,7 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   cand_.clear();
   near_front_.clear();
   ++res_.edge_evaluations;
-  grid_.for_each_near(mid, grid_.ring_for(gather + 0.5 * lab), [&](std::uint32_t j) {
+  auto visit = [&](std::uint32_t j) {
     ++res_.points_scanned;
     const VertexState st = state_[j];
     if (st == VertexState::kFront) near_front_.push_back(j);
@@ -481,6 +489,10 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
     // preference for continuing the surface smoothly.
     const double score = std::acos(std::clamp(cos_j, -1.0, 1.0)) + 0.5 * n1.dot(n0);
     cand_.push_back({score, j});
+  };
+  const std::vector<std::uint32_t>& order = grid_.order();
+  grid_.for_each_range_within(mid, gather + 0.5 * lab, [&](std::uint32_t first, std::uint32_t last) {
+    for (std::uint32_t slot = first; slot < last; ++slot) visit(order[slot]);
   });
   if (cand_.empty()) return false;
   std::sort(cand_.begin(), cand_.end(), [](const Candidate& l, const Candidate& r) {

@@ -117,7 +117,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     std::vector<float> sp = frames.spacing;
     std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2), sp.end());
     const double median = sp[sp.size() / 2];
-    if (median > 0) grid.build(reduced, (options.front.radius_factor * 1.5 + 0.6) * median);
+    if (median > 0) grid.build(reduced, 0.5 * (options.front.radius_factor * 1.5 + 0.6) * median);
   }
   res.reduced_points = reduced.size();
 

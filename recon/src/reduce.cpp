@@ -1,83 +1,343 @@
-// Cube reduction (reference method): keep, in every occupied cube, the point nearest its centre.
+// Cube reduction (reference method): keep, in every occupied cube, the point nearest its centre;
+// minimum-distance thinning of the representatives; projection onto local planes.
 // SPDX-License-Identifier: MIT
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <numeric>
+#include <string>
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/grid.hpp"
+#include "scanmesh/recon/normals.hpp"
 #include "scanmesh/recon/reduce.hpp"
 
 namespace scanmesh::recon {
+namespace {
 
-std::vector<std::uint32_t> cube_reduce(std::span<const Vec3> points, double cube) {
+constexpr std::uint32_t kNone = 0xffffffffu;
+
+/// Open-addressing table from cube key to the index of the input point nearest the cube centre
+/// and its squared distance to the centre. 20 bytes a slot, load at most one half; grows while
+/// points are added. Used when the cubes' (y, z) rows are too many for a dense array.
+class CubeTable {
+ public:
+  CubeTable(std::span<const Vec3> points, double cube) {
+    if (!(cube > 0) || !std::isfinite(cube)) throw GeometryError("cube size must be positive");
+    if (points.size() >= kNone) throw GeometryError("too many points (at most 2^32 - 1)");
+    if (points.empty()) return;
+    Vec3 lo = points[0], hi = points[0];
+    for (const Vec3& p : points) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    const double inv = 1.0 / cube;
+    if ((hi - lo).maxCoeff() * inv > 2.0e6) {
+      throw GeometryError("cube size " + std::to_string(cube) +
+                          " is too small for the extent of the cloud (over 2 million cubes per "
+                          "axis)");
+    }
+    resize(std::bit_ceil(std::max<std::size_t>(64, points.size() / 4)));
+    std::uint64_t last_key = ~std::uint64_t{0};
+    std::size_t last = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      // The reference method's expressions, kept as they were so ties resolve the same way.
+      const Vec3 g = (points[i] - lo) * inv;
+      const auto ix = static_cast<std::uint64_t>(g.x()), iy = static_cast<std::uint64_t>(g.y()),
+                 iz = static_cast<std::uint64_t>(g.z());
+      const std::uint64_t key = (iz << 42) | (iy << 21) | ix;
+      const Vec3 centre = lo + (Vec3(static_cast<double>(ix), static_cast<double>(iy),
+                                     static_cast<double>(iz)) +
+                                Vec3::Constant(0.5)) *
+                                   cube;
+      const double d2 = (points[i] - centre).squaredNorm();
+      if (key != last_key) {  // consecutive points often share a cube
+        last = slot_of(key);
+        last_key = key;
+        if (best_[last] == kNone) {
+          keys_[last] = key;
+          best_[last] = static_cast<std::uint32_t>(i);
+          d2_[last] = d2;
+          if (++size_ * 2 > keys_.size()) {
+            resize(keys_.size() * 2);
+            last = slot_of(key);
+          }
+          continue;
+        }
+      }
+      if (d2 < d2_[last]) {  // strict: the lower index wins ties
+        best_[last] = static_cast<std::uint32_t>(i);
+        d2_[last] = d2;
+      }
+    }
+  }
+
+  [[nodiscard]] std::size_t size() const { return size_; }
+
+  /// Bit set over the input points: the representatives.
+  [[nodiscard]] std::vector<std::uint64_t> representative_bits(std::size_t n) const {
+    std::vector<std::uint64_t> bits((n + 63) / 64, 0);
+    for (const std::uint32_t i : best_)
+      if (i != kNone) bits[i / 64] |= std::uint64_t{1} << (i % 64);
+    return bits;
+  }
+
+ private:
+  /// Slot holding `key`, or the empty slot where it would go.
+  [[nodiscard]] std::size_t slot_of(std::uint64_t key) const {
+    std::size_t h = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
+    while (best_[h] != kNone && keys_[h] != key) h = (h + 1) & mask_;
+    return h;
+  }
+  void resize(std::size_t cap) {
+    std::vector<std::uint64_t> old_keys(cap);
+    std::vector<std::uint32_t> old_best(cap, kNone);
+    std::vector<double> old_d2(cap);
+    old_keys.swap(keys_);
+    old_best.swap(best_);
+    old_d2.swap(d2_);
+    mask_ = cap - 1;
+    shift_ = 64 - std::countr_zero(cap);
+    for (std::size_t h = 0; h < old_best.size(); ++h) {
+      if (old_best[h] == kNone) continue;
+      const std::size_t g = slot_of(old_keys[h]);
+      keys_[g] = old_keys[h];
+      best_[g] = old_best[h];
+      d2_[g] = old_d2[h];
+    }
+  }
+
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> best_;
+  std::vector<double> d2_;
+  std::size_t size_ = 0, mask_ = 0;
+  int shift_ = 63;
+};
+
+
+/// Ascending list of the indices whose bit is set.
+std::vector<std::uint32_t> indices_of(const std::vector<std::uint64_t>& bits, std::size_t count) {
+  std::vector<std::uint32_t> out;
+  out.reserve(count);
+  for (std::size_t w = 0; w < bits.size(); ++w)
+    for (std::uint64_t b = bits[w]; b != 0; b &= b - 1)
+      out.push_back(static_cast<std::uint32_t>(w * 64 + static_cast<std::size_t>(std::countr_zero(b))));
+  return out;
+}
+
+/// Result of the cube reduction: the representatives as a bit set over the input points and,
+/// when the rows of cubes were dense, the representatives grouped by row (y, z) in key order and
+/// sorted by x inside a row.
+struct CubeReduction {
+  std::vector<std::uint64_t> bits;
+  std::size_t count = 0;
+  Vec3 lo = Vec3::Zero();  ///< bounding-box minimum: the origin of the cubes
+  bool dense = false;
+  std::uint64_t ny = 0, nz = 0;            ///< rows are indexed z * ny + y
+  std::vector<std::uint32_t> row_start;    ///< per row + 1: first representative of the row
+  std::vector<std::uint32_t> rep_x;        ///< per representative: cube x
+  std::vector<std::uint32_t> rep_index;    ///< per representative: input index
+};
+
+CubeReduction reduce_to_cubes(std::span<const Vec3> points, double cube, bool want_rows) {
   if (!(cube > 0) || !std::isfinite(cube)) throw GeometryError("cube size must be positive");
+  CubeReduction cr;
   const std::size_t n = points.size();
-  if (n == 0) return {};
+  if (n == 0) return cr;
+  if (n >= kNone) throw GeometryError("too many points (at most 2^32 - 1)");
   Vec3 lo = points[0], hi = points[0];
   for (const Vec3& p : points) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
+  cr.lo = lo;
   const double inv = 1.0 / cube;
   if ((hi - lo).maxCoeff() * inv > 2.0e6) {
     throw GeometryError("cube size " + std::to_string(cube) +
                         " is too small for the extent of the cloud (over 2 million cubes per "
                         "axis)");
   }
-  // Open-addressing table: cube key -> slot holding (best index, best squared distance).
-  const std::size_t cap = std::bit_ceil(std::max<std::size_t>(16, n * 2));
-  const std::size_t mask = cap - 1;
-  const int shift = 64 - std::countr_zero(cap);
-  constexpr std::uint32_t kEmpty = 0xffffffffu;
-  std::vector<std::uint64_t> keys(cap);
-  std::vector<std::uint32_t> best(cap, kEmpty);
-  std::vector<double> best_d2(cap);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 g = (points[i] - lo) * inv;
-    const auto ix = static_cast<std::uint64_t>(g.x()), iy = static_cast<std::uint64_t>(g.y()),
-               iz = static_cast<std::uint64_t>(g.z());
-    const std::uint64_t key = (iz << 42) | (iy << 21) | ix;
-    const Vec3 centre = lo + (Vec3(static_cast<double>(ix), static_cast<double>(iy),
-                                   static_cast<double>(iz)) +
-                              Vec3::Constant(0.5)) *
-                                 cube;
-    const double d2 = (points[i] - centre).squaredNorm();
-    std::size_t h = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift);
-    while (best[h] != kEmpty && keys[h] != key) h = (h + 1) & mask;
-    if (best[h] == kEmpty) {
-      keys[h] = key;
-      best[h] = static_cast<std::uint32_t>(i);
-      best_d2[h] = d2;
-    } else if (d2 < best_d2[h]) {  // strict: the lower index wins ties
-      best[h] = static_cast<std::uint32_t>(i);
-      best_d2[h] = d2;
+  const Vec3 top = (hi - lo) * inv;
+  const std::uint64_t ny = static_cast<std::uint64_t>(top.y()) + 1;
+  const std::uint64_t nz = static_cast<std::uint64_t>(top.z()) + 1;
+  if (static_cast<double>(ny) * static_cast<double>(nz) >
+      static_cast<double>(std::max<std::size_t>(4096, 2 * n))) {
+    const CubeTable table(points, cube);  // sparse extent: hash the cubes
+    cr.bits = table.representative_bits(n);
+    cr.count = table.size();
+    return cr;
+  }
+  cr.dense = true;
+  cr.ny = ny;
+  cr.nz = nz;
+  // Dense rows of cubes: the points' records (x, index, distance to the cube centre) are
+  // counting-sorted into rows (y, z); in each row the best record per x is kept. The
+  // expressions are the reference method's, so points land in the same cubes and ties resolve
+  // the same way.
+  struct Record {
+    std::uint32_t x, index;
+    double d2;
+  };
+  const std::size_t rows = static_cast<std::size_t>(ny * nz);
+  std::vector<std::uint32_t> start(rows + 1, 0);
+  for (const Vec3& p : points) {
+    const Vec3 g = (p - lo) * inv;
+    ++start[static_cast<std::uint64_t>(g.z()) * ny + static_cast<std::uint64_t>(g.y()) + 1];
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<Record> rec(n);
+  {
+    std::vector<std::uint32_t> next(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3& p = points[i];
+      const Vec3 g = (p - lo) * inv;
+      const auto ix = static_cast<std::uint64_t>(g.x()), iy = static_cast<std::uint64_t>(g.y()),
+                 iz = static_cast<std::uint64_t>(g.z());
+      const Vec3 centre = lo + (Vec3(static_cast<double>(ix), static_cast<double>(iy),
+                                     static_cast<double>(iz)) +
+                                Vec3::Constant(0.5)) *
+                                   cube;
+      rec[next[iz * ny + iy]++] = {static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(i),
+                                   (p - centre).squaredNorm()};
     }
   }
-  std::vector<std::uint32_t> kept;
-  for (std::size_t h = 0; h < cap; ++h)
-    if (best[h] != kEmpty) kept.push_back(best[h]);
-  std::sort(kept.begin(), kept.end());
-  return kept;
+  cr.bits.assign((n + 63) / 64, 0);
+  if (want_rows) cr.row_start.assign(rows + 1, 0);
+  auto keep = [&](const Record& r) {
+    cr.bits[r.index / 64] |= std::uint64_t{1} << (r.index % 64);
+    ++cr.count;
+    if (want_rows) {
+      cr.rep_x.push_back(r.x);
+      cr.rep_index.push_back(r.index);
+    }
+  };
+  // Per cube the point nearest the centre. A row's records are in index order, so a strict
+  // comparison lets the lower index win ties. Representatives come out in x order.
+  std::vector<std::uint32_t> slot;  // per x in the row's range: best record, or kNone
+  for (std::size_t r = 0; r < rows; ++r) {
+    if (want_rows) cr.row_start[r] = static_cast<std::uint32_t>(cr.rep_index.size());
+    Record* seg = rec.data() + start[r];
+    const std::uint32_t len = start[r + 1] - start[r];
+    if (len == 0) continue;
+    if (len == 1) {
+      keep(seg[0]);
+      continue;
+    }
+    std::uint32_t min_x = seg[0].x, max_x = seg[0].x;
+    for (std::uint32_t a = 1; a < len; ++a) {
+      min_x = std::min(min_x, seg[a].x);
+      max_x = std::max(max_x, seg[a].x);
+    }
+    const std::size_t range = std::size_t{max_x} - min_x + 1;
+    if (range <= 4 * std::size_t{len} + 64) {
+      if (slot.size() < range) slot.resize(range, kNone);
+      for (std::uint32_t a = 0; a < len; ++a) {
+        std::uint32_t& b = slot[seg[a].x - min_x];
+        if (b == kNone || seg[a].d2 < seg[b].d2) b = a;
+      }
+      for (std::size_t x = 0; x < range; ++x) {
+        if (slot[x] == kNone) continue;
+        keep(seg[slot[x]]);
+        slot[x] = kNone;
+      }
+    } else {  // very sparse row: sort it by (x, index)
+      std::sort(seg, seg + len, [](const Record& a, const Record& b) {
+        return a.x < b.x || (a.x == b.x && a.index < b.index);
+      });
+      for (std::uint32_t a = 0; a < len;) {
+        std::uint32_t best = a, b = a + 1;
+        for (; b < len && seg[b].x == seg[a].x; ++b)
+          if (seg[b].d2 < seg[best].d2) best = b;
+        keep(seg[best]);
+        a = b;
+      }
+    }
+  }
+  if (want_rows) cr.row_start[rows] = static_cast<std::uint32_t>(cr.rep_index.size());
+  return cr;
+}
+
+/// Greedy minimum-distance thinning from the clashing pairs: representatives are visited in
+/// priority order (squared distance to the own cube centre in cube units, most central first,
+/// input index breaking ties) and dropped when a clashing partner was kept. Only representatives
+/// with a partner need the order; the others are kept whatever it is. Returns per representative
+/// whether it is dropped.
+std::vector<std::uint8_t> thin_clashes(std::span<const Vec3> rep_points,
+                                       std::span<const std::uint32_t> rep_index,
+                                       const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+                                       const Vec3& lo, double cube) {
+  const std::size_t m = rep_points.size();
+  std::vector<std::uint8_t> dropped(m, 0);
+  if (pairs.empty()) return dropped;
+  // Partners of each representative (compressed rows).
+  std::vector<std::uint32_t> first(m + 1, 0);
+  for (const auto& [a, b] : pairs) {
+    ++first[a + 1];
+    ++first[b + 1];
+  }
+  std::partial_sum(first.begin(), first.end(), first.begin());
+  std::vector<std::uint32_t> partner(first[m]);
+  {
+    std::vector<std::uint32_t> next(first.begin(), first.end() - 1);
+    for (const auto& [a, b] : pairs) {
+      partner[next[a]++] = b;
+      partner[next[b]++] = a;
+    }
+  }
+  struct Prio {
+    double value;
+    std::uint32_t index, rep;
+  };
+  std::vector<Prio> prio;
+  for (std::uint32_t k = 0; k < m; ++k) {
+    if (first[k] == first[k + 1]) continue;
+    // The reference method's expression, so the same order.
+    const Vec3 g = (rep_points[k] - lo) / cube;
+    const Vec3 c = (g.array().floor() + 0.5).matrix();
+    prio.push_back({(g - c).squaredNorm(), rep_index[k], k});
+  }
+  std::sort(prio.begin(), prio.end(), [](const Prio& a, const Prio& b) {
+    return a.value < b.value || (a.value == b.value && a.index < b.index);
+  });
+  std::vector<std::uint8_t> kept(m, 0);
+  for (const Prio& p : prio) {
+    bool hit = false;
+    for (std::uint32_t q = first[p.rep]; q < first[p.rep + 1] && !hit; ++q) hit = kept[partner[q]];
+    (hit ? dropped : kept)[p.rep] = 1;
+  }
+  return dropped;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> cube_reduce(std::span<const Vec3> points, double cube) {
+  const CubeReduction cr = reduce_to_cubes(points, cube, false);
+  return indices_of(cr.bits, cr.count);
 }
 
 std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
                                              std::span<const std::uint32_t> priority,
                                              double min_distance) {
+  if (!(min_distance > 0) || !std::isfinite(min_distance))
+    throw GeometryError("minimum distance must be positive");
   std::vector<Vec3> sub(priority.size());
   for (std::size_t i = 0; i < priority.size(); ++i) sub[i] = points[priority[i]];
   PointGrid grid;
   grid.build(sub, min_distance);
+  const auto& order = grid.order();
   std::vector<std::uint8_t> kept(sub.size(), 0);
   const double r2 = min_distance * min_distance;
   std::vector<std::uint32_t> out;
   out.reserve(sub.size());
   for (std::uint32_t i = 0; i < sub.size(); ++i) {
     bool clash = false;
-    grid.for_each_near(sub[i], 1, [&](std::uint32_t j) {
-      if (kept[j] && (sub[j] - sub[i]).squaredNorm() < r2) clash = true;
+    const Vec3& p = sub[i];
+    grid.for_each_range_within(p, min_distance, [&](std::uint32_t first, std::uint32_t last) {
+      for (std::uint32_t s = first; s < last && !clash; ++s) {
+        const std::uint32_t j = order[s];
+        clash = kept[j] && (sub[j] - p).squaredNorm() < r2;
+      }
     });
     if (clash) continue;
     kept[i] = 1;
@@ -90,51 +350,174 @@ std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
 std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
                                           std::span<const std::uint32_t> representatives,
                                           double radius, double max_move) {
+  std::vector<Vec3> out(representatives.size());
+  if (representatives.empty()) return out;
+  if (input.size() >= kNone) throw GeometryError("too many points (at most 2^32 - 1)");
+  // Cells of one radius: the 27 cells around a representative's cell hold its ball. The
+  // representatives are processed cell by cell, so the candidates of a cell are gathered once
+  // into flat arrays that every representative of the cell scans (branch-free) for its ball.
   PointGrid grid;
   grid.build(input, radius);
+  const auto& order = grid.order();
   const double r2 = radius * radius;
-  std::vector<Vec3> out(representatives.size());
+  // Position of each input point in `representatives` (the first, if listed twice).
+  std::vector<std::uint32_t> rep_of(input.size(), kNone);
+  bool repeated = false;
   for (std::size_t i = 0; i < representatives.size(); ++i) {
-    const Vec3& p = input[representatives[i]];
-    Vec3 sum = Vec3::Zero();
-    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-    std::size_t n = 0;
-    grid.for_each_near(p, 1, [&](std::uint32_t j) {
-      const Vec3 d = input[j] - p;  // relative to p: well conditioned
-      if (d.squaredNorm() > r2) return;
-      sum += d;
-      outer += d * d.transpose();
-      ++n;
+    std::uint32_t& r = rep_of[representatives[i]];
+    if (r == kNone)
+      r = static_cast<std::uint32_t>(i);
+    else
+      repeated = true;
+  }
+  std::vector<double> cx, cy, cz;
+  std::vector<std::uint32_t> inside;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;
+  grid.for_each_cell([&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first,
+                         std::uint32_t last) {
+    bool any = false;
+    for (std::uint32_t s = first; s < last && !any; ++s) any = rep_of[order[s]] != kNone;
+    if (!any) return;
+    ranges.clear();
+    std::size_t cnt = 0;
+    grid.for_each_block_range(x, y, z, 1, [&](std::uint32_t b, std::uint32_t e) {
+      ranges.emplace_back(b, e);
+      cnt += e - b;
     });
-    out[i] = p;
-    if (n < 6) continue;
-    const Vec3 mean = sum / static_cast<double>(n);
-    const Eigen::Matrix3d cov = outer / static_cast<double>(n) - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-    const Vec3 normal = es.eigenvectors().col(0);
-    double move = -mean.dot(normal);  // signed distance from p to the plane, along -normal
-    move = std::clamp(move, -max_move, max_move);
-    out[i] = p - move * normal;
+    if (cx.size() < cnt) {
+      cx.resize(cnt);
+      cy.resize(cnt);
+      cz.resize(cnt);
+      inside.resize(cnt);
+    }
+    std::size_t t = 0;
+    for (const auto& [b, e] : ranges) {
+      for (std::uint32_t s = b; s < e; ++s, ++t) {
+        const Vec3& q = input[order[s]];
+        cx[t] = q.x();
+        cy[t] = q.y();
+        cz[t] = q.z();
+      }
+    }
+    for (std::uint32_t s = first; s < last; ++s) {
+      const std::uint32_t rep = rep_of[order[s]];
+      if (rep == kNone) continue;
+      const Vec3& p = input[order[s]];
+      const double px = p.x(), py = p.y(), pz = p.z();
+      std::size_t n = 0;
+      for (std::size_t u = 0; u < cnt; ++u) {  // the ball, in the order of the 27 cells
+        const double dx = cx[u] - px, dy = cy[u] - py, dz = cz[u] - pz;
+        inside[n] = static_cast<std::uint32_t>(u);
+        n += dx * dx + dy * dy + dz * dz <= r2 ? 1 : 0;
+      }
+      out[rep] = p;
+      if (n < 6) continue;
+      // Moments relative to p (well conditioned).
+      double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+      for (std::size_t q = 0; q < n; ++q) {
+        const std::uint32_t u = inside[q];
+        const double dx = cx[u] - px, dy = cy[u] - py, dz = cz[u] - pz;
+        sx += dx;
+        sy += dy;
+        sz += dz;
+        sxx += dx * dx;
+        sxy += dx * dy;
+        sxz += dx * dz;
+        syy += dy * dy;
+        syz += dy * dz;
+        szz += dz * dz;
+      }
+      const auto nd = static_cast<double>(n);
+      const Vec3 mean = Vec3(sx, sy, sz) / nd;
+      Eigen::Matrix3d outer;
+      outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
+      const Eigen::Matrix3d cov = outer / nd - mean * mean.transpose();
+      const Vec3 normal = detail::plane_normal(cov).normal;
+      double move = -mean.dot(normal);  // signed distance from p to the plane, along -normal
+      move = std::clamp(move, -max_move, max_move);
+      out[rep] = p - move * normal;
+    }
+  });
+  if (repeated) {
+    for (std::size_t i = 0; i < representatives.size(); ++i)
+      out[i] = out[rep_of[representatives[i]]];
   }
   return out;
 }
 
 std::vector<std::uint32_t> cube_reduce_thin(std::span<const Vec3> points, double cube) {
-  std::vector<std::uint32_t> kept = cube_reduce(points, cube);
-  if (kept.empty()) return kept;
-  // Priority: distance to the own cube centre, most central first (index breaks ties).
-  Vec3 lo = points[0];
-  for (const Vec3& p : points) lo = lo.cwiseMin(p);
-  std::vector<std::pair<double, std::uint32_t>> order(kept.size());
-  for (std::size_t i = 0; i < kept.size(); ++i) {
-    const Vec3 g = (points[kept[i]] - lo) / cube;
-    const Vec3 c = (g.array().floor() + 0.5).matrix();
-    order[i] = {(g - c).squaredNorm(), kept[i]};
+  // Thinning (reference: thin_min_distance(0.65 cube) in cube-centre order) only ever involves
+  // representatives of neighbouring cubes: each cube has one and the distance is under a cube.
+  CubeReduction cr = reduce_to_cubes(points, cube, true);
+  if (cr.count == 0) return {};
+  const double min_distance = 0.65 * cube;
+  const double r2 = min_distance * min_distance;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;  // clashing representatives
+  std::vector<std::uint32_t> rep_index;
+  std::vector<Vec3> rep_points;
+  if (cr.dense) {
+    // Sweep over pairs of neighbouring rows (13 forward neighbour cubes: same row x + 1; row
+    // y + 1 and the three rows z + 1, x - 1..x + 1), two pointers along x.
+    rep_index = std::move(cr.rep_index);
+    const std::size_t m = rep_index.size();
+    rep_points.resize(m);
+    for (std::size_t k = 0; k < m; ++k) rep_points[k] = points[rep_index[k]];
+    const std::vector<std::uint32_t>& rx = cr.rep_x;
+    const std::uint64_t ny = cr.ny, nz = cr.nz;
+    for (std::uint64_t z = 0; z < nz; ++z) {
+      for (std::uint64_t y = 0; y < ny; ++y) {
+        const std::uint64_t r = z * ny + y;
+        const std::uint32_t a0 = cr.row_start[r], a1 = cr.row_start[r + 1];
+        if (a0 == a1) continue;
+        auto sweep = [&](std::uint64_t nr, bool same_row) {
+          std::uint32_t j = cr.row_start[nr];
+          const std::uint32_t j1 = cr.row_start[nr + 1];
+          for (std::uint32_t a = a0; a < a1 && j < j1; ++a) {
+            const std::uint32_t x = rx[a];
+            while (j < j1 && rx[j] + 1 < x) ++j;  // x' >= x - 1
+            for (std::uint32_t b = j; b < j1 && rx[b] <= x + 1; ++b) {
+              if (same_row && rx[b] <= x) continue;
+              if ((rep_points[b] - rep_points[a]).squaredNorm() < r2) pairs.emplace_back(a, b);
+            }
+          }
+        };
+        sweep(r, true);
+        if (y + 1 < ny) sweep(r + 1, false);
+        if (z + 1 < nz) {
+          if (y > 0) sweep(r + ny - 1, false);
+          sweep(r + ny, false);
+          if (y + 1 < ny) sweep(r + ny + 1, false);
+        }
+      }
+    }
+  } else {
+    // Sparse extent: the representatives in index order, clashes from a grid of one cube.
+    rep_index = indices_of(cr.bits, cr.count);
+    const std::size_t m = rep_index.size();
+    rep_points.resize(m);
+    for (std::size_t k = 0; k < m; ++k) rep_points[k] = points[rep_index[k]];
+    PointGrid grid;
+    grid.build(rep_points, cube);
+    const auto& order = grid.order();
+    for (std::uint32_t a = 0; a < m; ++a) {
+      const Vec3& p = rep_points[a];
+      grid.for_each_range_within(p, min_distance, [&](std::uint32_t b, std::uint32_t e) {
+        for (std::uint32_t s = b; s < e; ++s) {
+          const std::uint32_t j = order[s];
+          if (j > a && (rep_points[j] - p).squaredNorm() < r2) pairs.emplace_back(a, j);
+        }
+      });
+    }
   }
-  std::sort(order.begin(), order.end());
-  std::vector<std::uint32_t> prio(order.size());
-  for (std::size_t i = 0; i < order.size(); ++i) prio[i] = order[i].second;
-  return thin_min_distance(points, prio, 0.65 * cube);
+  const std::vector<std::uint8_t> dropped = thin_clashes(rep_points, rep_index, pairs, cr.lo, cube);
+  std::fill(cr.bits.begin(), cr.bits.end(), 0);
+  std::size_t count = 0;
+  for (std::size_t k = 0; k < rep_index.size(); ++k) {
+    if (dropped[k]) continue;
+    cr.bits[rep_index[k] / 64] |= std::uint64_t{1} << (rep_index[k] % 64);
+    ++count;
+  }
+  return indices_of(cr.bits, count);
 }
 
 }  // namespace scanmesh::recon

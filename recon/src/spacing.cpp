@@ -1,12 +1,13 @@
 // Sampling statistics: nearest-neighbour spacing, cross-line spacing and shell thickness.
 // SPDX-License-Identifier: MIT
-#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include "scanmesh/recon/grid.hpp"
+#include "scanmesh/recon/normals.hpp"
 #include "scanmesh/recon/reduce.hpp"
 
 namespace scanmesh::recon {
@@ -18,6 +19,108 @@ double median(std::vector<double>& v) {
   std::nth_element(v.begin(), mid, v.end());
   return *mid;
 }
+
+constexpr std::size_t kNeighbours = 20;  // neighbourhood of the noise (quadric) fit
+
+/// RMS residual of the least-squares quadric height field h(u, v) over the PCA plane of the
+/// k >= 12 neighbour offsets d[0..k): noise, without the curvature of a coarsely sampled
+/// surface. `extent` (about the neighbourhood radius) scales u and v.
+double quadric_residual(const Vec3* d, std::size_t k, double extent) {
+  Vec3 mean = Vec3::Zero();
+  for (std::size_t m = 0; m < k; ++m) mean += d[m];
+  mean /= static_cast<double>(k);
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
+  for (std::size_t m = 0; m < k; ++m) {
+    const Vec3 e = d[m] - mean;
+    xx += e.x() * e.x();
+    xy += e.x() * e.y();
+    xz += e.x() * e.z();
+    yy += e.y() * e.y();
+    yz += e.y() * e.z();
+    zz += e.z() * e.z();
+  }
+  Eigen::Matrix3d cov;
+  cov << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+  const Vec3 normal = detail::plane_normal(cov).normal;
+  // Any orthonormal in-plane axes do: the residual of a full quadric does not depend on them.
+  // Scaling u and v to about [-1, 1] keeps the normal equations well conditioned.
+  const Vec3 e1 = normal.unitOrthogonal();
+  const Vec3 e2 = normal.cross(e1);
+  const double s = extent > 0 ? 1.0 / extent : 1.0;
+  using Row = Eigen::Matrix<double, 6, 1>;
+  auto row_of = [&](const Vec3& dm, double* row) {
+    const Vec3 e = dm - mean;
+    const double u = e.dot(e1) * s, v = e.dot(e2) * s;
+    row[0] = u * u;
+    row[1] = u * v;
+    row[2] = v * v;
+    row[3] = u;
+    row[4] = v;
+    row[5] = 1.0;
+    return e.dot(normal);
+  };
+  // Design matrix with zero rows beyond k (they change neither A^T A nor A^T h).
+  Eigen::Matrix<double, kNeighbours, 6> a = Eigen::Matrix<double, kNeighbours, 6>::Zero();
+  Eigen::Matrix<double, kNeighbours, 1> h = Eigen::Matrix<double, kNeighbours, 1>::Zero();
+  for (std::size_t m = 0; m < k; ++m) {
+    double row[6];
+    const auto r = static_cast<Eigen::Index>(m);
+    h[r] = row_of(d[m], row);
+    for (int c = 0; c < 6; ++c) a(r, c) = row[c];
+  }
+  const Eigen::Matrix<double, 6, 6> ata = a.transpose() * a;
+  const Row ath = a.transpose() * h;
+  // Cholesky factorisation of the (scaled, well conditioned) normal equations; the pivoting
+  // QR of the design matrix when they are (nearly) singular: points on a conic.
+  double l[6][6] = {};
+  double max_diag = 0, min_pivot = std::numeric_limits<double>::infinity();
+  for (int c = 0; c < 6; ++c) max_diag = std::max(max_diag, ata(c, c));
+  for (int c = 0; c < 6; ++c) {
+    double dsum = ata(c, c);
+    for (int q = 0; q < c; ++q) dsum -= l[c][q] * l[c][q];
+    min_pivot = std::min(min_pivot, dsum);
+    if (!(dsum > 1e-10 * max_diag)) break;
+    l[c][c] = std::sqrt(dsum);
+    for (int r = c + 1; r < 6; ++r) {
+      double v = ata(r, c);
+      for (int q = 0; q < c; ++q) v -= l[r][q] * l[c][q];
+      l[r][c] = v / l[c][c];
+    }
+  }
+  Row coef;
+  if (min_pivot > 1e-10 * max_diag) {
+    double y[6];
+    for (int r = 0; r < 6; ++r) {
+      double v = ath[r];
+      for (int q = 0; q < r; ++q) v -= l[r][q] * y[q];
+      y[r] = v / l[r][r];
+    }
+    for (int r = 5; r >= 0; --r) {
+      double v = y[r];
+      for (int q = r + 1; q < 6; ++q) v -= l[q][r] * coef[q];
+      coef[r] = v / l[r][r];
+    }
+  } else {
+    const auto kk = static_cast<Eigen::Index>(k);
+    coef = a.topRows(kk).colPivHouseholderQr().solve(h.head(kk));
+  }
+  const double rss = (a * coef - h).squaredNorm();
+  return std::sqrt(rss / static_cast<double>(k - 6));
+}
+
+/// A point near the sample: squared distance, index, offset from the sample.
+struct Near {
+  double d2;
+  std::uint32_t j;
+  Vec3 d;
+};
+
+/// Sort key of a Near: (distance, index), and its position.
+struct Key {
+  double d2;
+  std::uint32_t j, pos;
+  [[nodiscard]] bool before(const Key& o) const { return d2 < o.d2 || (d2 == o.d2 && j < o.j); }
+};
 
 }  // namespace
 
@@ -31,65 +134,100 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
     hi = hi.cwiseMax(p);
   }
   const Vec3 ext = (hi - lo).cwiseMax(1e-12 * (hi - lo).norm() + 1e-300);
-  // A surface sample of n points in a box: about n / (2 * area) points per unit area; choose the
-  // cell so that a cell holds a few dozen points (surface area ~ sum of the box face areas).
+  // A surface sample of n points in a box: about n / (2 * area) points per unit area (surface
+  // area ~ sum of the box face areas). `reach` (a few dozen points' worth) bounds every search.
   const double area = ext.x() * ext.y() + ext.y() * ext.z() + ext.z() * ext.x();
-  double cell = std::sqrt(area / static_cast<double>(n)) * 4.0;
-  if (!(cell > 0) || !std::isfinite(cell)) cell = ext.maxCoeff();
+  double reach = std::sqrt(area / static_cast<double>(n)) * 4.0;
+  if (!(reach > 0) || !std::isfinite(reach)) reach = ext.maxCoeff();
+  // Cells of half the reach: about the radius of a query, which then looks at a few rows only.
   PointGrid grid;
-  grid.build(points, cell);
+  grid.build(points, std::max(0.5 * reach, 1e-6 * ext.maxCoeff()));
+  const auto& order = grid.order();
 
-  const std::size_t stride = std::max<std::size_t>(1, n / max_samples);
+  const std::size_t stride = std::max<std::size_t>(1, n / std::max<std::size_t>(1, max_samples));
   std::vector<double> d1s, d2s, thick;
-  std::vector<std::pair<double, std::uint32_t>> near;
-  for (std::size_t i = 0; i < n; i += stride) {
+  std::vector<Near> near;  // the points within the radius
+  Key top[kNeighbours];     // the nearest of them by (distance, index), ascending
+  Vec3 nb[kNeighbours];
+  double radius = 0.5 * reach;  // first guess; then from the previous sample's neighbourhood
+  // The samples are the points with an index divisible by the stride, visited in grid order:
+  // consecutive samples are then near each other and share cached neighbourhoods. (The
+  // statistics do not depend on the visiting order.)
+  for (const std::uint32_t i : order) {
+    if (i % stride != 0) continue;
     const Vec3& p = points[i];
-    near.clear();
-    grid.for_each_near(p, 1, [&](std::uint32_t j) {
-      if (j != i) near.emplace_back((points[j] - p).squaredNorm(), j);
-    });
-    if (near.empty()) continue;
-    const std::size_t k = std::min<std::size_t>(20, near.size());
-    std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
-    // Skip exact duplicates for the direction of the nearest neighbour.
-    std::size_t first = 0;
-    while (first < k && near[first].first == 0) ++first;
-    if (first == k) continue;
-    d1s.push_back(std::sqrt(near[first].first));
-    const Vec3 u = (points[near[first].second] - p).normalized();
-    double d2 = std::numeric_limits<double>::infinity();
-    for (std::size_t m = first + 1; m < near.size(); ++m) {
-      // near beyond k is unsorted: scan all of it for the cross neighbour.
-      const Vec3 w = points[near[m].second] - p;
-      const double len2 = near[m].first;
-      if (len2 == 0 || len2 >= d2 * d2) continue;
-      if (std::abs(u.dot(w)) < std::sqrt(0.5 * len2)) d2 = std::sqrt(len2);
+    // Every point within `radius` (radius doubled until it holds kNeighbours, up to the reach):
+    // then the kNeighbours nearest are exact.
+    double r = radius;
+    std::size_t cnt = 0;
+    while (true) {
+      cnt = 0;
+      const double r2 = r * r;
+      grid.for_each_range_within(p, r, [&](std::uint32_t first, std::uint32_t last) {
+        if (near.size() < cnt + (last - first)) near.resize(2 * (cnt + (last - first)));
+        for (std::uint32_t s = first; s < last; ++s) {
+          const std::uint32_t j = order[s];
+          const Vec3 d = points[j] - p;
+          const double d2 = d.squaredNorm();
+          near[cnt] = {d2, j, d};
+          cnt += (d2 <= r2) & (j != i) ? 1 : 0;
+        }
+      });
+      if (cnt >= kNeighbours || r >= reach) break;
+      r = std::min(2 * r, reach);
     }
-    if (std::isfinite(d2)) d2s.push_back(d2);
+    if (cnt == 0) continue;
+    const std::size_t k = std::min(kNeighbours, cnt);
+    // The set of the k nearest by (distance, index); the nearest at a non-zero distance (exact
+    // duplicates say nothing about the direction); skip the sample when the k nearest are all
+    // duplicates.
+    std::size_t m = 0, zeros = 0;
+    std::uint32_t first = 0;
+    for (std::uint32_t a = 0; a < cnt; ++a) {
+      const Key c{near[a].d2, near[a].j, a};
+      zeros += c.d2 == 0 ? 1 : 0;
+      if (near[first].d2 == 0 || (c.d2 != 0 && c.before(Key{near[first].d2, near[first].j, 0})))
+        first = a;
+      if (m == k && !c.before(top[k - 1])) continue;  // bounded insertion
+      std::size_t b = m < k ? m++ : k - 1;
+      while (b > 0 && c.before(top[b - 1])) {
+        top[b] = top[b - 1];
+        --b;
+      }
+      top[b] = c;
+    }
+    const double dk2 = top[k - 1].d2;  // squared distance of the k-th nearest
+    radius = std::min(reach, 1.25 * std::sqrt(dk2));
+    if (!(radius > 0)) radius = 0.5 * reach;
+    if (zeros >= k) continue;
+    const Near& nearest = near[first];
+    d1s.push_back(std::sqrt(nearest.d2));
+    const Vec3 u = nearest.d / std::sqrt(nearest.d2);
+    // Cross neighbour: the nearest point more than 45 degrees off u (|u.w| < |w| / sqrt 2,
+    // compared squared). Among the points within r it is exact; when there is none there, look
+    // further, up to the reach.
+    double best = std::numeric_limits<double>::infinity();  // squared
+    auto cross_test = [&](const Vec3& w, double len2) {
+      if (len2 == 0 || len2 >= best) return;
+      const double c = u.dot(w);
+      if (c * c < 0.5 * len2) best = len2;
+    };
+    for (std::size_t a = 0; a < cnt; ++a)
+      if (a != first) cross_test(near[a].d, near[a].d2);
+    if (!std::isfinite(best) && r < reach) {
+      grid.for_each_range_within(p, reach, [&](std::uint32_t b, std::uint32_t e) {
+        for (std::uint32_t s = b; s < e; ++s) {
+          const std::uint32_t j = order[s];
+          if (j == i || j == nearest.j) continue;
+          const Vec3 w = points[j] - p;
+          cross_test(w, w.squaredNorm());
+        }
+      });
+    }
+    if (std::isfinite(best)) d2s.push_back(std::sqrt(best));
     if (k >= 12) {
-      // Noise: RMS residual of a local quadric (height over the PCA plane), so curvature of a
-      // coarsely sampled surface does not count as noise.
-      Vec3 mean = Vec3::Zero();
-      for (std::size_t m = 0; m < k; ++m) mean += points[near[m].second];
-      mean /= static_cast<double>(k);
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      for (std::size_t m = 0; m < k; ++m) {
-        const Vec3 d = points[near[m].second] - mean;
-        cov += d * d.transpose();
-      }
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-      const Eigen::Matrix3d frame = es.eigenvectors();  // col 0 = normal
-      Eigen::MatrixXd a(k, 6);
-      Eigen::VectorXd h(k);
-      for (std::size_t m = 0; m < k; ++m) {
-        const Vec3 d = frame.transpose() * (points[near[m].second] - mean);
-        const double u = d.z(), v = d.y();
-        a.row(static_cast<Eigen::Index>(m)) << u * u, u * v, v * v, u, v, 1.0;
-        h[static_cast<Eigen::Index>(m)] = d.x();
-      }
-      const Eigen::VectorXd coef = a.colPivHouseholderQr().solve(h);
-      const Eigen::VectorXd r = a * coef - h;
-      thick.push_back(std::sqrt(r.squaredNorm() / static_cast<double>(k - 6)));
+      for (std::size_t a = 0; a < k; ++a) nb[a] = near[top[a].pos].d;
+      thick.push_back(quadric_residual(nb, k, std::sqrt(dk2)));
     }
   }
   est.sampled = d1s.size();

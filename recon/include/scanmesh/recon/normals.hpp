@@ -25,8 +25,24 @@ struct NormalOptions {
   std::optional<Vec3> view_point;
 };
 
-/// `grid` must index `points` with a cell of at least ~2x the typical spacing.
+/// `grid` must index `points` with a cell of at least ~2x the typical spacing. The neighbours
+/// of a point are the `neighbours` nearest among the points of the 27 grid cells around it
+/// (ties broken by the lower index); 125 and then 343 cells when 27 hold too few.
 LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
                             const NormalOptions& options = {});
+
+namespace detail {
+
+/// Principal axes of a 3x3 covariance matrix.
+struct PlaneFit {
+  Vec3 normal;       ///< unit eigenvector of the smallest eigenvalue (sign arbitrary)
+  Vec3 eigenvalues;  ///< ascending
+};
+
+/// Closed-form eigen-decomposition (Eigen's computeDirect); falls back to the iterative solver
+/// when the two smallest eigenvalues are too close for the closed form to resolve the normal.
+PlaneFit plane_normal(const Eigen::Matrix3d& cov);
+
+}  // namespace detail
 
 }  // namespace scanmesh::recon
