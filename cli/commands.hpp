@@ -22,5 +22,6 @@ void add_reconstruct_command(CLI::App& app, Runner& run);
 void add_inspect_command(CLI::App& app, Runner& run);
 void add_deviation_command(CLI::App& app, Runner& run);
 void add_generate_command(CLI::App& app, Runner& run);
+void add_simulate_command(CLI::App&, Runner&);
 
 }  // namespace scanmesh::cli

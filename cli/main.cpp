@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   cli::add_inspect_command(app, run);
   cli::add_deviation_command(app, run);
   cli::add_generate_command(app, run);
+  cli::add_simulate_command(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

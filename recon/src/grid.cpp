@@ -32,8 +32,9 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
   // Leave one empty cell of margin below the minimum so ring queries never underflow.
   for (int a = 0; a < 3; ++a) origin_[a] = points.empty() ? 0.0 : lo[a] - cell;
   if (!points.empty() && ((hi - lo).maxCoeff() * inv_cell_ + 3 > static_cast<double>(kMax))) {
-    throw GeometryError("point cloud too large for the grid resolution (over 2 million cells "
-                        "per axis); use a larger cube size");
+    throw GeometryError(
+        "point cloud too large for the grid resolution (over 2 million cells "
+        "per axis); use a larger cube size");
   }
   const std::size_t n = points.size();
   if (n >= kNone) throw GeometryError("too many points for the grid (at most 2^32 - 1)");
@@ -115,7 +116,8 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
       for (std::uint32_t a = 0; a < len; ++a) {
         order_[b + a] = static_cast<std::uint32_t>(seg[a]);
         const auto x = static_cast<std::uint32_t>(seg[a] >> 32);
-        if (a == 0 || x != static_cast<std::uint32_t>(seg[a - 1] >> 32)) cells_.push_back({x, b + a});
+        if (a == 0 || x != static_cast<std::uint32_t>(seg[a - 1] >> 32))
+          cells_.push_back({x, b + a});
       }
       dense_[r] = {first_cell, static_cast<std::uint32_t>(cells_.size())};
       row_key_.push_back((static_cast<std::uint64_t>(r / static_cast<std::size_t>(ny_)) << 21) |
@@ -125,7 +127,7 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
   } else {
     // Sparse extent: cells through a growing hash table, then sorted by key.
     std::vector<std::uint32_t> cell_of(n);
-    std::vector<std::uint32_t> xcell(n);  // per point: x cell coordinate
+    std::vector<std::uint32_t> xcell(n);                        // per point: x cell coordinate
     std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;  // (key, count) per cell id
     std::size_t cap = std::bit_ceil(std::max<std::size_t>(64, n / 8));
     int shift = 64 - std::countr_zero(cap);
@@ -183,7 +185,8 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
         row_first_cell_.push_back(c);
       }
     }
-    for (std::size_t i = 0; i < n; ++i) order_[cursor[cell_of[i]]++] = static_cast<std::uint32_t>(i);
+    for (std::size_t i = 0; i < n; ++i)
+      order_[cursor[cell_of[i]]++] = static_cast<std::uint32_t>(i);
   }
   cells_.push_back({0, static_cast<std::uint32_t>(n)});
   row_first_cell_.push_back(static_cast<std::uint32_t>(cells_.size() - 1));

@@ -1,14 +1,14 @@
 // PCA normals over k nearest neighbours, oriented by propagation over the kNN graph (Hoppe et
 // al.: most-parallel neighbour first, from an extreme point of each component facing outward).
 // SPDX-License-Identifier: MIT
+#include "scanmesh/recon/normals.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
 #include <numeric>
-
-#include "scanmesh/recon/normals.hpp"
 
 namespace scanmesh::recon {
 
@@ -74,6 +74,8 @@ struct Picked {
 
 /// Multiple of the previous point's k-th squared distance used to pre-filter candidates.
 constexpr double kThresholdFactor = 1.5;
+/// Squared-distance buckets of the pre-filtered candidates (a few times their number).
+constexpr std::uint32_t kBuckets = 64;
 
 /// Indexed 4-ary min-heap of frontier vertices for the orientation propagation. Each vertex in
 /// it carries its best edge from the visited set, ordered by (cost, from, to): the order in
@@ -97,28 +99,15 @@ class Frontier {
     return (static_cast<std::uint64_t>(ordered) << 32) | from;
   }
 
-  /// Takes the unoriented normals; a vertex's normal and heap state share one 16-byte record,
-  /// so a neighbour costs one cache line.
-  explicit Frontier(const std::vector<Eigen::Vector3f>& normals) : node_(normals.size()) {
-    for (std::size_t v = 0; v < normals.size(); ++v)
-      node_[v] = {normals[v].x(), normals[v].y(), normals[v].z(), kUnseen};
-  }
-  [[nodiscard]] bool done(std::uint32_t v) const { return node_[v].pos == kDone; }
-  void set_done(std::uint32_t v) { node_[v].pos = kDone; }
-  [[nodiscard]] Eigen::Map<const Eigen::Vector3f> normal(std::uint32_t v) const {
-    return Eigen::Map<const Eigen::Vector3f>(&node_[v].nx);
-  }
-  void flip(std::uint32_t v) {
-    node_[v].nx = -node_[v].nx;
-    node_[v].ny = -node_[v].ny;
-    node_[v].nz = -node_[v].nz;
-  }
+  explicit Frontier(std::size_t n) : pos_(n, kUnseen) {}
+  [[nodiscard]] bool done(std::uint32_t v) const { return pos_[v] == kDone; }
+  void set_done(std::uint32_t v) { pos_[v] = kDone; }
   [[nodiscard]] bool empty() const { return heap_.empty(); }
 
   /// Offers edge from -> to (to not done): kept when better than its current edge.
   void offer(float cost, std::uint32_t from, std::uint32_t to) {
     const Item it{make_key(cost, from), to};
-    std::uint32_t at = node_[to].pos;
+    std::uint32_t at = pos_[to];
     if (at == kUnseen) {
       at = static_cast<std::uint32_t>(heap_.size());
       heap_.push_back(it);
@@ -129,7 +118,7 @@ class Frontier {
   }
   Item pop() {
     const Item top = heap_.front();
-    node_[top.to].pos = kDone;
+    pos_[top.to] = kDone;
     const Item last = heap_.back();
     heap_.pop_back();
     if (!heap_.empty()) sift_down(last);
@@ -142,11 +131,11 @@ class Frontier {
       const std::uint32_t parent = (at - 1) / 4;
       if (!(it < heap_[parent])) break;
       heap_[at] = heap_[parent];
-      node_[heap_[at].to].pos = at;
+      pos_[heap_[at].to] = at;
       at = parent;
     }
     heap_[at] = it;
-    node_[it.to].pos = at;
+    pos_[it.to] = at;
   }
   /// Places `it` at the root and moves it down.
   void sift_down(const Item& it) {
@@ -161,18 +150,14 @@ class Frontier {
         if (heap_[c] < heap_[best]) best = c;
       if (!(heap_[best] < it)) break;
       heap_[at] = heap_[best];
-      node_[heap_[at].to].pos = at;
+      pos_[heap_[at].to] = at;
       at = best;
     }
     heap_[at] = it;
-    node_[it.to].pos = at;
+    pos_[it.to] = at;
   }
 
-  struct Node {
-    float nx, ny, nz;
-    std::uint32_t pos;  // heap position, kUnseen or kDone
-  };
-  std::vector<Node> node_;
+  std::vector<std::uint32_t> pos_;  // heap position, kUnseen or kDone
   std::vector<Item> heap_;
 };
 
@@ -220,8 +205,9 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
       sz[q] = points[near[q].second].z();
     }
     finish_point(sx.data(), sy.data(), sz.data(), seq.data(), p, i, best_d2.data(), m, f);
-    if (propagate) std::copy(best_j.begin(), best_j.begin() + static_cast<std::ptrdiff_t>(m),
-                             knn.data() + i * k);
+    if (propagate)
+      std::copy(best_j.begin(), best_j.begin() + static_cast<std::ptrdiff_t>(m),
+                knn.data() + i * k);
   };
 
   if (grid.order().size() != n) {
@@ -235,7 +221,9 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
     std::vector<double> cx, cy, cz, cd2;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;
     std::vector<std::uint32_t> best_t(k);
-    std::vector<Picked> picked, top(k);
+    std::vector<Picked> picked, sorted, top(k);
+    std::vector<std::uint32_t> bucket_of;
+    std::uint32_t bucket_start[kBuckets + 1];
     double threshold = std::numeric_limits<double>::infinity();
     grid.for_each_cell([&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first,
                            std::uint32_t last) {
@@ -256,6 +244,8 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
         cz.resize(cnt);
         cd2.resize(cnt);
         picked.resize(cnt);
+        sorted.resize(cnt);
+        bucket_of.resize(cnt);
       }
       std::size_t t = 0;
       for (const auto& [b, e] : ranges) {
@@ -287,25 +277,51 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
           picked[np] = {d2, cand[u], static_cast<std::uint32_t>(u)};
           np += (d2 <= thr) & (cand[u] != i) ? 1 : 0;
         }
-        while (np < k) {
-          thr *= 4;
+        for (int widen = 0; np < k; ++widen) {  // four times the filter, then everything
+          thr = widen == 0 ? 4 * thr : std::numeric_limits<double>::infinity();
           np = 0;
           for (std::size_t u = 0; u < cnt; ++u) {
             picked[np] = {ds[u], cand[u], static_cast<std::uint32_t>(u)};
             np += (ds[u] <= thr) & (cand[u] != i) ? 1 : 0;
           }
         }
-        // Bounded insertion of the picked ones by (distance, index): the k nearest, ascending.
-        std::size_t m = 0;
-        for (std::size_t a = 0; a < np; ++a) {
-          const Picked c = picked[a];
-          if (m == k && !c.before(top[k - 1])) continue;
-          std::size_t b = m < k ? m++ : k - 1;
-          while (b > 0 && c.before(top[b - 1])) {
-            top[b] = top[b - 1];
-            --b;
+        if (thr < std::numeric_limits<double>::infinity() && thr > 0) {
+          // Counting sort of the picked ones into buckets of squared distance (uniformly
+          // filled on a surface), then an insertion sort by (distance, index) that rarely
+          // moves anything; the first k are the k nearest.
+          const double scale = static_cast<double>(kBuckets) / thr;
+          std::fill(std::begin(bucket_start), std::end(bucket_start), 0u);
+          for (std::size_t a = 0; a < np; ++a) {
+            const auto b = std::min(kBuckets - 1, static_cast<std::uint32_t>(picked[a].d2 * scale));
+            bucket_of[a] = b;
+            ++bucket_start[b + 1];
           }
-          top[b] = c;
+          for (std::uint32_t b = 0; b < kBuckets; ++b) bucket_start[b + 1] += bucket_start[b];
+          for (std::size_t a = 0; a < np; ++a) sorted[bucket_start[bucket_of[a]]++] = picked[a];
+          for (std::size_t a = 1; a < np; ++a) {
+            if (!sorted[a].before(sorted[a - 1])) continue;
+            const Picked c = sorted[a];
+            std::size_t b = a;
+            do {
+              sorted[b] = sorted[b - 1];
+              --b;
+            } while (b > 0 && c.before(sorted[b - 1]));
+            sorted[b] = c;
+          }
+          std::copy(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), top.begin());
+        } else {
+          // Bounded insertion by (distance, index): the k nearest, ascending.
+          std::size_t m = 0;
+          for (std::size_t a = 0; a < np; ++a) {
+            const Picked c = picked[a];
+            if (m == k && !c.before(top[k - 1])) continue;
+            std::size_t b = m < k ? m++ : k - 1;
+            while (b > 0 && c.before(top[b - 1])) {
+              top[b] = top[b - 1];
+              --b;
+            }
+            top[b] = c;
+          }
         }
         for (std::size_t q = 0; q < k; ++q) {
           best_t[q] = top[q].t;
@@ -330,27 +346,27 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
   // Propagation: Prim traversal of the kNN graph (edges i -> its k nearest), most parallel
   // edges first, with an indexed heap of frontier vertices (one entry per vertex, decreased when
   // a better edge appears) instead of a queue of every edge pushed.
-  Frontier frontier(f.normal);
+  Frontier frontier(n);
   auto visit = [&](std::uint32_t i) {
-    const Eigen::Vector3f ni = frontier.normal(i);
+    const Eigen::Vector3f ni = f.normal[i];
     const std::uint32_t* row = knn.data() + i * k;
     for (std::size_t q = 0; q < k; ++q) {
       const std::uint32_t j = row[q];
       if (j == kNone || frontier.done(j)) continue;
-      const float c = 1.0f - std::abs(ni.dot(frontier.normal(j)));
+      const float c = 1.0f - std::abs(ni.dot(f.normal[j]));
       // j is visited when popped: fetch its neighbour row ahead of time.
       __builtin_prefetch(knn.data() + static_cast<std::size_t>(j) * k);
       frontier.offer(c, i, j);
     }
   };
   auto grow_from = [&](std::uint32_t start) {
-    if (frontier.normal(start).z() < 0) frontier.flip(start);
+    if (f.normal[start].z() < 0) f.normal[start] = -f.normal[start];
     frontier.set_done(start);
     visit(start);
     while (!frontier.empty()) {
       const Frontier::Item it = frontier.pop();
 
-      if (frontier.normal(it.from()).dot(frontier.normal(it.to)) < 0) frontier.flip(it.to);
+      if (f.normal[it.from()].dot(f.normal[it.to]) < 0) f.normal[it.to] = -f.normal[it.to];
       visit(it.to);
     }
   };
@@ -369,7 +385,6 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
   std::sort(rest.begin(), rest.end(), higher);
   for (const std::uint32_t start : rest)
     if (!frontier.done(start)) grow_from(start);
-  for (std::uint32_t i = 0; i < n; ++i) f.normal[i] = frontier.normal(i);
   return f;
 }
 

@@ -1,6 +1,8 @@
 // Cube reduction (reference method): keep, in every occupied cube, the point nearest its centre;
 // minimum-distance thinning of the representatives; projection onto local planes.
 // SPDX-License-Identifier: MIT
+#include "scanmesh/recon/reduce.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -11,7 +13,6 @@
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/grid.hpp"
 #include "scanmesh/recon/normals.hpp"
-#include "scanmesh/recon/reduce.hpp"
 
 namespace scanmesh::recon {
 namespace {
@@ -19,8 +20,8 @@ namespace {
 constexpr std::uint32_t kNone = 0xffffffffu;
 
 /// Open-addressing table from cube key to the index of the input point nearest the cube centre
-/// and its squared distance to the centre. 20 bytes a slot, load at most one half; grows while
-/// points are added. Used when the cubes' (y, z) rows are too many for a dense array.
+/// and its squared distance to the centre (24-byte slots, load at most one half; grows while
+/// points are added). Used when the cubes' (y, z) rows are too many for a dense array.
 class CubeTable {
  public:
   CubeTable(std::span<const Vec3> points, double cube) {
@@ -38,37 +39,44 @@ class CubeTable {
                           " is too small for the extent of the cloud (over 2 million cubes per "
                           "axis)");
     }
-    resize(std::bit_ceil(std::max<std::size_t>(64, points.size() / 4)));
+    resize(std::bit_ceil(std::max<std::size_t>(64, points.size() / 2)));
     std::uint64_t last_key = ~std::uint64_t{0};
     std::size_t last = 0;
+    auto key_of = [&](const Vec3& p) {
+      const Vec3 g = (p - lo) * inv;
+      return (static_cast<std::uint64_t>(g.z()) << 42) | (static_cast<std::uint64_t>(g.y()) << 21) |
+             static_cast<std::uint64_t>(g.x());
+    };
+    constexpr std::size_t kAhead = 16;  // the table is far larger than the caches: prefetch
     for (std::size_t i = 0; i < points.size(); ++i) {
+      if (i + kAhead < points.size()) __builtin_prefetch(&slots_[hash(key_of(points[i + kAhead]))]);
       // The reference method's expressions, kept as they were so ties resolve the same way.
       const Vec3 g = (points[i] - lo) * inv;
       const auto ix = static_cast<std::uint64_t>(g.x()), iy = static_cast<std::uint64_t>(g.y()),
                  iz = static_cast<std::uint64_t>(g.z());
       const std::uint64_t key = (iz << 42) | (iy << 21) | ix;
-      const Vec3 centre = lo + (Vec3(static_cast<double>(ix), static_cast<double>(iy),
-                                     static_cast<double>(iz)) +
-                                Vec3::Constant(0.5)) *
-                                   cube;
+      const Vec3 centre =
+          lo + (Vec3(static_cast<double>(ix), static_cast<double>(iy), static_cast<double>(iz)) +
+                Vec3::Constant(0.5)) *
+                   cube;
       const double d2 = (points[i] - centre).squaredNorm();
       if (key != last_key) {  // consecutive points often share a cube
         last = slot_of(key);
         last_key = key;
-        if (best_[last] == kNone) {
-          keys_[last] = key;
-          best_[last] = static_cast<std::uint32_t>(i);
-          d2_[last] = d2;
-          if (++size_ * 2 > keys_.size()) {
-            resize(keys_.size() * 2);
+        Slot& sl = slots_[last];
+        if (sl.best == kNone) {
+          sl = {key, d2, static_cast<std::uint32_t>(i)};
+          if (++size_ * 2 > slots_.size()) {
+            resize(slots_.size() * 2);
             last = slot_of(key);
           }
           continue;
         }
       }
-      if (d2 < d2_[last]) {  // strict: the lower index wins ties
-        best_[last] = static_cast<std::uint32_t>(i);
-        d2_[last] = d2;
+      Slot& sl = slots_[last];
+      if (d2 < sl.d2) {  // strict: the lower index wins ties
+        sl.best = static_cast<std::uint32_t>(i);
+        sl.d2 = d2;
       }
     }
   }
@@ -78,43 +86,39 @@ class CubeTable {
   /// Bit set over the input points: the representatives.
   [[nodiscard]] std::vector<std::uint64_t> representative_bits(std::size_t n) const {
     std::vector<std::uint64_t> bits((n + 63) / 64, 0);
-    for (const std::uint32_t i : best_)
-      if (i != kNone) bits[i / 64] |= std::uint64_t{1} << (i % 64);
+    for (const Slot& sl : slots_)
+      if (sl.best != kNone) bits[sl.best / 64] |= std::uint64_t{1} << (sl.best % 64);
     return bits;
   }
 
  private:
+  struct Slot {
+    std::uint64_t key;
+    double d2;           // squared distance of `best` to the cube centre
+    std::uint32_t best;  // input index, kNone when the slot is empty
+  };
+  [[nodiscard]] std::size_t hash(std::uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
   /// Slot holding `key`, or the empty slot where it would go.
   [[nodiscard]] std::size_t slot_of(std::uint64_t key) const {
-    std::size_t h = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
-    while (best_[h] != kNone && keys_[h] != key) h = (h + 1) & mask_;
+    std::size_t h = hash(key);
+    while (slots_[h].best != kNone && slots_[h].key != key) h = (h + 1) & mask_;
     return h;
   }
   void resize(std::size_t cap) {
-    std::vector<std::uint64_t> old_keys(cap);
-    std::vector<std::uint32_t> old_best(cap, kNone);
-    std::vector<double> old_d2(cap);
-    old_keys.swap(keys_);
-    old_best.swap(best_);
-    old_d2.swap(d2_);
+    std::vector<Slot> old(cap, Slot{0, 0, kNone});
+    old.swap(slots_);
     mask_ = cap - 1;
     shift_ = 64 - std::countr_zero(cap);
-    for (std::size_t h = 0; h < old_best.size(); ++h) {
-      if (old_best[h] == kNone) continue;
-      const std::size_t g = slot_of(old_keys[h]);
-      keys_[g] = old_keys[h];
-      best_[g] = old_best[h];
-      d2_[g] = old_d2[h];
-    }
+    for (const Slot& sl : old)
+      if (sl.best != kNone) slots_[slot_of(sl.key)] = sl;
   }
 
-  std::vector<std::uint64_t> keys_;
-  std::vector<std::uint32_t> best_;
-  std::vector<double> d2_;
+  std::vector<Slot> slots_;
   std::size_t size_ = 0, mask_ = 0;
   int shift_ = 63;
 };
-
 
 /// Ascending list of the indices whose bit is set.
 std::vector<std::uint32_t> indices_of(const std::vector<std::uint64_t>& bits, std::size_t count) {
@@ -122,7 +126,8 @@ std::vector<std::uint32_t> indices_of(const std::vector<std::uint64_t>& bits, st
   out.reserve(count);
   for (std::size_t w = 0; w < bits.size(); ++w)
     for (std::uint64_t b = bits[w]; b != 0; b &= b - 1)
-      out.push_back(static_cast<std::uint32_t>(w * 64 + static_cast<std::size_t>(std::countr_zero(b))));
+      out.push_back(
+          static_cast<std::uint32_t>(w * 64 + static_cast<std::size_t>(std::countr_zero(b))));
   return out;
 }
 
@@ -134,10 +139,10 @@ struct CubeReduction {
   std::size_t count = 0;
   Vec3 lo = Vec3::Zero();  ///< bounding-box minimum: the origin of the cubes
   bool dense = false;
-  std::uint64_t ny = 0, nz = 0;            ///< rows are indexed z * ny + y
-  std::vector<std::uint32_t> row_start;    ///< per row + 1: first representative of the row
-  std::vector<std::uint32_t> rep_x;        ///< per representative: cube x
-  std::vector<std::uint32_t> rep_index;    ///< per representative: input index
+  std::uint64_t ny = 0, nz = 0;          ///< rows are indexed z * ny + y
+  std::vector<std::uint32_t> row_start;  ///< per row + 1: first representative of the row
+  std::vector<std::uint32_t> rep_x;      ///< per representative: cube x
+  std::vector<std::uint32_t> rep_index;  ///< per representative: input index
 };
 
 CubeReduction reduce_to_cubes(std::span<const Vec3> points, double cube, bool want_rows) {
@@ -194,10 +199,10 @@ CubeReduction reduce_to_cubes(std::span<const Vec3> points, double cube, bool wa
       const Vec3 g = (p - lo) * inv;
       const auto ix = static_cast<std::uint64_t>(g.x()), iy = static_cast<std::uint64_t>(g.y()),
                  iz = static_cast<std::uint64_t>(g.z());
-      const Vec3 centre = lo + (Vec3(static_cast<double>(ix), static_cast<double>(iy),
-                                     static_cast<double>(iz)) +
-                                Vec3::Constant(0.5)) *
-                                   cube;
+      const Vec3 centre =
+          lo + (Vec3(static_cast<double>(ix), static_cast<double>(iy), static_cast<double>(iz)) +
+                Vec3::Constant(0.5)) *
+                   cube;
       rec[next[iz * ny + iy]++] = {static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(i),
                                    (p - centre).squaredNorm()};
     }
@@ -263,10 +268,10 @@ CubeReduction reduce_to_cubes(std::span<const Vec3> points, double cube, bool wa
 /// input index breaking ties) and dropped when a clashing partner was kept. Only representatives
 /// with a partner need the order; the others are kept whatever it is. Returns per representative
 /// whether it is dropped.
-std::vector<std::uint8_t> thin_clashes(std::span<const Vec3> rep_points,
-                                       std::span<const std::uint32_t> rep_index,
-                                       const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
-                                       const Vec3& lo, double cube) {
+std::vector<std::uint8_t> thin_clashes(
+    std::span<const Vec3> rep_points, std::span<const std::uint32_t> rep_index,
+    const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs, const Vec3& lo,
+    double cube) {
   const std::size_t m = rep_points.size();
   std::vector<std::uint8_t> dropped(m, 0);
   if (pairs.empty()) return dropped;
@@ -373,71 +378,71 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
   std::vector<double> cx, cy, cz;
   std::vector<std::uint32_t> inside;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;
-  grid.for_each_cell([&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first,
-                         std::uint32_t last) {
-    bool any = false;
-    for (std::uint32_t s = first; s < last && !any; ++s) any = rep_of[order[s]] != kNone;
-    if (!any) return;
-    ranges.clear();
-    std::size_t cnt = 0;
-    grid.for_each_block_range(x, y, z, 1, [&](std::uint32_t b, std::uint32_t e) {
-      ranges.emplace_back(b, e);
-      cnt += e - b;
-    });
-    if (cx.size() < cnt) {
-      cx.resize(cnt);
-      cy.resize(cnt);
-      cz.resize(cnt);
-      inside.resize(cnt);
-    }
-    std::size_t t = 0;
-    for (const auto& [b, e] : ranges) {
-      for (std::uint32_t s = b; s < e; ++s, ++t) {
-        const Vec3& q = input[order[s]];
-        cx[t] = q.x();
-        cy[t] = q.y();
-        cz[t] = q.z();
-      }
-    }
-    for (std::uint32_t s = first; s < last; ++s) {
-      const std::uint32_t rep = rep_of[order[s]];
-      if (rep == kNone) continue;
-      const Vec3& p = input[order[s]];
-      const double px = p.x(), py = p.y(), pz = p.z();
-      std::size_t n = 0;
-      for (std::size_t u = 0; u < cnt; ++u) {  // the ball, in the order of the 27 cells
-        const double dx = cx[u] - px, dy = cy[u] - py, dz = cz[u] - pz;
-        inside[n] = static_cast<std::uint32_t>(u);
-        n += dx * dx + dy * dy + dz * dz <= r2 ? 1 : 0;
-      }
-      out[rep] = p;
-      if (n < 6) continue;
-      // Moments relative to p (well conditioned).
-      double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
-      for (std::size_t q = 0; q < n; ++q) {
-        const std::uint32_t u = inside[q];
-        const double dx = cx[u] - px, dy = cy[u] - py, dz = cz[u] - pz;
-        sx += dx;
-        sy += dy;
-        sz += dz;
-        sxx += dx * dx;
-        sxy += dx * dy;
-        sxz += dx * dz;
-        syy += dy * dy;
-        syz += dy * dz;
-        szz += dz * dz;
-      }
-      const auto nd = static_cast<double>(n);
-      const Vec3 mean = Vec3(sx, sy, sz) / nd;
-      Eigen::Matrix3d outer;
-      outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
-      const Eigen::Matrix3d cov = outer / nd - mean * mean.transpose();
-      const Vec3 normal = detail::plane_normal(cov).normal;
-      double move = -mean.dot(normal);  // signed distance from p to the plane, along -normal
-      move = std::clamp(move, -max_move, max_move);
-      out[rep] = p - move * normal;
-    }
-  });
+  grid.for_each_cell(
+      [&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first, std::uint32_t last) {
+        bool any = false;
+        for (std::uint32_t s = first; s < last && !any; ++s) any = rep_of[order[s]] != kNone;
+        if (!any) return;
+        ranges.clear();
+        std::size_t cnt = 0;
+        grid.for_each_block_range(x, y, z, 1, [&](std::uint32_t b, std::uint32_t e) {
+          ranges.emplace_back(b, e);
+          cnt += e - b;
+        });
+        if (cx.size() < cnt) {
+          cx.resize(cnt);
+          cy.resize(cnt);
+          cz.resize(cnt);
+          inside.resize(cnt);
+        }
+        std::size_t t = 0;
+        for (const auto& [b, e] : ranges) {
+          for (std::uint32_t s = b; s < e; ++s, ++t) {
+            const Vec3& q = input[order[s]];
+            cx[t] = q.x();
+            cy[t] = q.y();
+            cz[t] = q.z();
+          }
+        }
+        for (std::uint32_t s = first; s < last; ++s) {
+          const std::uint32_t rep = rep_of[order[s]];
+          if (rep == kNone) continue;
+          const Vec3& p = input[order[s]];
+          const double px = p.x(), py = p.y(), pz = p.z();
+          std::size_t n = 0;
+          for (std::size_t u = 0; u < cnt; ++u) {  // the ball, in the order of the 27 cells
+            const double dx = cx[u] - px, dy = cy[u] - py, dz = cz[u] - pz;
+            inside[n] = static_cast<std::uint32_t>(u);
+            n += dx * dx + dy * dy + dz * dz <= r2 ? 1 : 0;
+          }
+          out[rep] = p;
+          if (n < 6) continue;
+          // Moments relative to p (well conditioned).
+          double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
+          for (std::size_t q = 0; q < n; ++q) {
+            const std::uint32_t u = inside[q];
+            const double dx = cx[u] - px, dy = cy[u] - py, dz = cz[u] - pz;
+            sx += dx;
+            sy += dy;
+            sz += dz;
+            sxx += dx * dx;
+            sxy += dx * dy;
+            sxz += dx * dz;
+            syy += dy * dy;
+            syz += dy * dz;
+            szz += dz * dz;
+          }
+          const auto nd = static_cast<double>(n);
+          const Vec3 mean = Vec3(sx, sy, sz) / nd;
+          Eigen::Matrix3d outer;
+          outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
+          const Eigen::Matrix3d cov = outer / nd - mean * mean.transpose();
+          const Vec3 normal = detail::plane_normal(cov).normal;
+          double move = -mean.dot(normal);  // signed distance from p to the plane, along -normal
+          move = std::clamp(move, -max_move, max_move);
+          out[rep] = p - move * normal;
+        }
+      });
   if (repeated) {
     for (std::size_t i = 0; i < representatives.size(); ++i)
       out[i] = out[rep_of[representatives[i]]];

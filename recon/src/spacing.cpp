@@ -21,6 +21,7 @@ double median(std::vector<double>& v) {
 }
 
 constexpr std::size_t kNeighbours = 20;  // neighbourhood of the noise (quadric) fit
+constexpr std::uint32_t kBuckets = 64;   // squared-distance buckets of a neighbourhood
 
 /// RMS residual of the least-squares quadric height field h(u, v) over the PCA plane of the
 /// k >= 12 neighbour offsets d[0..k): noise, without the curvature of a coarsely sampled
@@ -146,15 +147,19 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
 
   const std::size_t stride = std::max<std::size_t>(1, n / std::max<std::size_t>(1, max_samples));
   std::vector<double> d1s, d2s, thick;
-  std::vector<Near> near;  // the points within the radius
-  Key top[kNeighbours];     // the nearest of them by (distance, index), ascending
+  std::vector<Near> near;   // the points within the radius
+  std::vector<Key> sorted;  // their keys by (distance, index)
+  std::vector<std::uint32_t> bucket_of;
+  std::uint32_t bucket_start[kBuckets + 1];
   Vec3 nb[kNeighbours];
   double radius = 0.5 * reach;  // first guess; then from the previous sample's neighbourhood
   // The samples are the points with an index divisible by the stride, visited in grid order:
   // consecutive samples are then near each other and share cached neighbourhoods. (The
   // statistics do not depend on the visiting order.)
+  std::vector<std::uint64_t> is_sample((n + 63) / 64, 0);
+  for (std::size_t i = 0; i < n; i += stride) is_sample[i / 64] |= std::uint64_t{1} << (i % 64);
   for (const std::uint32_t i : order) {
-    if (i % stride != 0) continue;
+    if ((is_sample[i / 64] >> (i % 64) & 1) == 0) continue;
     const Vec3& p = points[i];
     // Every point within `radius` (radius doubled until it holds kNeighbours, up to the reach):
     // then the kNeighbours nearest are exact.
@@ -181,25 +186,39 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
     // The set of the k nearest by (distance, index); the nearest at a non-zero distance (exact
     // duplicates say nothing about the direction); skip the sample when the k nearest are all
     // duplicates.
-    std::size_t m = 0, zeros = 0;
-    std::uint32_t first = 0;
+    // The points within r sorted by (distance, index): a counting sort into buckets of squared
+    // distance (about uniformly filled on a surface), then an insertion sort that rarely moves
+    // anything. The first k are the k nearest; the nearest at a non-zero distance gives the
+    // direction (exact duplicates say nothing about it); the sample is skipped when the k
+    // nearest are all duplicates.
+    const double scale = static_cast<double>(kBuckets) / (r * r);
+    std::fill(std::begin(bucket_start), std::end(bucket_start), 0u);
+    bucket_of.resize(cnt);
+    sorted.resize(cnt);
     for (std::uint32_t a = 0; a < cnt; ++a) {
-      const Key c{near[a].d2, near[a].j, a};
-      zeros += c.d2 == 0 ? 1 : 0;
-      if (near[first].d2 == 0 || (c.d2 != 0 && c.before(Key{near[first].d2, near[first].j, 0})))
-        first = a;
-      if (m == k && !c.before(top[k - 1])) continue;  // bounded insertion
-      std::size_t b = m < k ? m++ : k - 1;
-      while (b > 0 && c.before(top[b - 1])) {
-        top[b] = top[b - 1];
-        --b;
-      }
-      top[b] = c;
+      bucket_of[a] = std::min(kBuckets - 1, static_cast<std::uint32_t>(near[a].d2 * scale));
+      ++bucket_start[bucket_of[a] + 1];
     }
-    const double dk2 = top[k - 1].d2;  // squared distance of the k-th nearest
+    for (std::uint32_t b = 0; b < kBuckets; ++b) bucket_start[b + 1] += bucket_start[b];
+    for (std::uint32_t a = 0; a < cnt; ++a)
+      sorted[bucket_start[bucket_of[a]]++] = {near[a].d2, near[a].j, a};
+    for (std::size_t a = 1; a < cnt; ++a) {
+      if (!sorted[a].before(sorted[a - 1])) continue;
+      const Key c = sorted[a];
+      std::size_t b = a;
+      do {
+        sorted[b] = sorted[b - 1];
+        --b;
+      } while (b > 0 && c.before(sorted[b - 1]));
+      sorted[b] = c;
+    }
+    const double dk2 = sorted[k - 1].d2;  // squared distance of the k-th nearest
     radius = std::min(reach, 1.25 * std::sqrt(dk2));
     if (!(radius > 0)) radius = 0.5 * reach;
-    if (zeros >= k) continue;
+    std::size_t zeros = 0;
+    while (zeros < k && sorted[zeros].d2 == 0) ++zeros;
+    if (zeros == k) continue;
+    const std::uint32_t first = sorted[zeros].pos;
     const Near& nearest = near[first];
     d1s.push_back(std::sqrt(nearest.d2));
     const Vec3 u = nearest.d / std::sqrt(nearest.d2);
@@ -226,7 +245,7 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
     }
     if (std::isfinite(best)) d2s.push_back(std::sqrt(best));
     if (k >= 12) {
-      for (std::size_t a = 0; a < k; ++a) nb[a] = near[top[a].pos].d;
+      for (std::size_t a = 0; a < k; ++a) nb[a] = near[sorted[a].pos].d;
       thick.push_back(quadric_residual(nb, k, std::sqrt(dk2)));
     }
   }

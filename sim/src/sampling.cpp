@@ -4,36 +4,15 @@
 
 #include <cmath>
 #include <cstddef>
-#include <numbers>
-#include <random>
 #include <string>
 
 #include "scanmesh/common/error.hpp"
+#include "scanmesh/sim/rng.hpp"
 
 namespace scanmesh::sim {
 namespace {
 
 using recon::Vec3;
-
-/// Doubles from the raw 64-bit output of std::mt19937_64 (whose sequence the standard fixes),
-/// mapped here rather than by <random> distributions, whose algorithms are unspecified.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : gen_(seed) {}
-  /// Uniform on [0, 1): the top 53 bits as a fraction.
-  double uniform() { return static_cast<double>(gen_() >> 11) * 0x1.0p-53; }
-  /// Uniform on (0, 1]: safe for log().
-  double uniform_open_low() { return static_cast<double>((gen_() >> 11) + 1) * 0x1.0p-53; }
-  /// Standard normal by Box-Muller (the cosine branch; one normal per two draws).
-  double gaussian() {
-    const double u1 = uniform_open_low();
-    const double u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
-  }
-
- private:
-  std::mt19937_64 gen_;
-};
 
 /// A separate stream for the noise, so a noisy sample is the noise-free sample plus noise.
 constexpr std::uint64_t kNoiseStream = 0x9E3779B97F4A7C15ULL;

@@ -14,10 +14,11 @@
 namespace scanmesh::recon {
 
 /// Points grouped by cubic cell. Occupied cells are kept in key order (z, then y, then x), and
-/// a row of cells (same y and z) is found through an open-addressing table keyed by (y, z). The
-/// cells of a row are contiguous and sorted by x, and so are their points in `order()`: a block
-/// of cells x0..x1 of one row is one contiguous slot range. A ring query therefore costs one
-/// table look-up per row instead of one per cell.
+/// a row of cells (same y and z) is found through a dense (y, z) array, or an open-addressing
+/// table when that array would be large. The cells of a row are contiguous and sorted by x, and
+/// so are their points in `order()`: a block of cells x0..x1 of one row is one contiguous slot
+/// range. A ring query therefore costs one look-up per row instead of one per cell, and
+/// for_each_range_within skips the rows and cells out of reach.
 /// Cell coordinates are 21-bit; the grid origin is the bounding-box minimum minus one cell, so
 /// coordinates are non-negative and at most 2^21 cells per axis (checked by the builder).
 class PointGrid {
@@ -86,8 +87,7 @@ class PointGrid {
         if (rem < 0) continue;
         const double rx = std::sqrt(rem);
         std::uint32_t first = 0, last = 0;
-        if (row_range(y, z, floor_int(ux - rx), floor_int(ux + rx), first, last))
-          f(first, last);
+        if (row_range(y, z, floor_int(ux - rx), floor_int(ux + rx), first, last)) f(first, last);
       }
     }
   }
@@ -157,7 +157,8 @@ class PointGrid {
     const auto hi = static_cast<std::uint32_t>(std::min<std::int64_t>(x1, kMax));
     if (e - a > 8) {
       a = static_cast<std::uint32_t>(
-          std::lower_bound(c + a, c + e, lo, [](const Cell& q, std::uint32_t v) { return q.x < v; }) -
+          std::lower_bound(c + a, c + e, lo,
+                           [](const Cell& q, std::uint32_t v) { return q.x < v; }) -
           c);
     } else {
       while (a < e && c[a].x < lo) ++a;
