@@ -263,7 +263,12 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
 }
 
 double auto_cube_size(const SpacingEstimate& s) {
-  return std::max({s.nearest_mm, 0.75 * s.cross_mm, 14.0 * s.thickness_mm});
+  const double sampling = std::max(s.nearest_mm, 0.75 * s.cross_mm);
+  // A "shell" thicker than about a third of the spacing is not scanner noise but structure the
+  // sampling can barely resolve (thin walls seen from both sides, sharp features): a cube large
+  // enough to swallow it would erase the part, so the sampling alone decides then.
+  if (s.thickness_mm > 0.3 * s.cross_mm) return sampling;
+  return std::max(sampling, 14.0 * s.thickness_mm);
 }
 
 }  // namespace scanmesh::recon
