@@ -789,13 +789,14 @@ void Builder::split_flat_triangle_holes() {
     if (mid == kNone) continue;
     const FrontEdge& le = edges_[long_edge];  // z -> x, triangle (z, x, o) behind it
     const std::uint32_t z = le.a, x = le.b, o = le.opp;
-    if (o == mid) continue;
+    if (o == mid || edges_map_.find(mid, o) != nullptr) continue;  // the split edge must be new
     for (Triangle& t : tris_) {
       for (int r = 0; r < 3; ++r) {
         if (t[static_cast<std::size_t>(r)] == z && t[static_cast<std::size_t>((r + 1) % 3)] == x &&
             t[static_cast<std::size_t>((r + 2) % 3)] == o) {
           t = {z, mid, o};
           tris_.push_back({mid, x, o});
+          edges_map_.insert(mid, o, kInterior);
           ++res_.filled_gaps;
           goto next_loop;
         }
