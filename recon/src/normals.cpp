@@ -3,6 +3,8 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/normals.hpp"
 
+#include "neighbour_order.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <bit>
@@ -66,16 +68,10 @@ void finish_point(const double* xs, const double* ys, const double* zs, const In
 }
 
 /// A neighbour candidate: squared distance, point index, position in the candidate arrays.
-struct Picked {
-  double d2;
-  std::uint32_t j, t;
-  [[nodiscard]] bool before(const Picked& o) const { return d2 < o.d2 || (d2 == o.d2 && j < o.j); }
-};
+using Picked = detail::Neighbour;
 
 /// Multiple of the previous point's k-th squared distance used to pre-filter candidates.
 constexpr double kThresholdFactor = 1.5;
-/// Squared-distance buckets of the pre-filtered candidates (a few times their number).
-constexpr std::uint32_t kBuckets = 64;
 
 /// Indexed 4-ary min-heap of frontier vertices for the orientation propagation. Each vertex in
 /// it carries its best edge from the visited set, ordered by (cost, from, to): the order in
@@ -222,8 +218,7 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
     std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;
     std::vector<std::uint32_t> best_t(k);
     std::vector<Picked> picked, sorted, top(k);
-    std::vector<std::uint32_t> bucket_of;
-    std::uint32_t bucket_start[kBuckets + 1];
+    detail::NeighbourOrder ordering;
     double threshold = std::numeric_limits<double>::infinity();
     grid.for_each_cell([&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first,
                            std::uint32_t last) {
@@ -245,7 +240,6 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
         cd2.resize(cnt);
         picked.resize(cnt);
         sorted.resize(cnt);
-        bucket_of.resize(cnt);
       }
       std::size_t t = 0;
       for (const auto& [b, e] : ranges) {
@@ -286,28 +280,8 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
           }
         }
         if (thr < std::numeric_limits<double>::infinity() && thr > 0) {
-          // Counting sort of the picked ones into buckets of squared distance (uniformly
-          // filled on a surface), then an insertion sort by (distance, index) that rarely
-          // moves anything; the first k are the k nearest.
-          const double scale = static_cast<double>(kBuckets) / thr;
-          std::fill(std::begin(bucket_start), std::end(bucket_start), 0u);
-          for (std::size_t a = 0; a < np; ++a) {
-            const auto b = std::min(kBuckets - 1, static_cast<std::uint32_t>(picked[a].d2 * scale));
-            bucket_of[a] = b;
-            ++bucket_start[b + 1];
-          }
-          for (std::uint32_t b = 0; b < kBuckets; ++b) bucket_start[b + 1] += bucket_start[b];
-          for (std::size_t a = 0; a < np; ++a) sorted[bucket_start[bucket_of[a]]++] = picked[a];
-          for (std::size_t a = 1; a < np; ++a) {
-            if (!sorted[a].before(sorted[a - 1])) continue;
-            const Picked c = sorted[a];
-            std::size_t b = a;
-            do {
-              sorted[b] = sorted[b - 1];
-              --b;
-            } while (b > 0 && c.before(sorted[b - 1]));
-            sorted[b] = c;
-          }
+          // Sorted by (distance, index); the first k are the k nearest.
+          ordering.sort(picked.data(), np, thr, sorted.data());
           std::copy(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), top.begin());
         } else {
           // Bounded insertion by (distance, index): the k nearest, ascending.
@@ -324,7 +298,7 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
           }
         }
         for (std::size_t q = 0; q < k; ++q) {
-          best_t[q] = top[q].t;
+          best_t[q] = top[q].tag;
           best_j[q] = top[q].j;
           best_d2[q] = top[q].d2;
         }

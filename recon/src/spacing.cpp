@@ -10,6 +10,8 @@
 #include "scanmesh/recon/normals.hpp"
 #include "scanmesh/recon/reduce.hpp"
 
+#include "neighbour_order.hpp"
+
 namespace scanmesh::recon {
 namespace {
 
@@ -21,7 +23,6 @@ double median(std::vector<double>& v) {
 }
 
 constexpr std::size_t kNeighbours = 20;  // neighbourhood of the noise (quadric) fit
-constexpr std::uint32_t kBuckets = 64;   // squared-distance buckets of a neighbourhood
 
 /// RMS residual of the least-squares quadric height field h(u, v) over the PCA plane of the
 /// k >= 12 neighbour offsets d[0..k): noise, without the curvature of a coarsely sampled
@@ -116,12 +117,6 @@ struct Near {
   Vec3 d;
 };
 
-/// Sort key of a Near: (distance, index), and its position.
-struct Key {
-  double d2;
-  std::uint32_t j, pos;
-  [[nodiscard]] bool before(const Key& o) const { return d2 < o.d2 || (d2 == o.d2 && j < o.j); }
-};
 
 }  // namespace
 
@@ -148,9 +143,8 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
   const std::size_t stride = std::max<std::size_t>(1, n / std::max<std::size_t>(1, max_samples));
   std::vector<double> d1s, d2s, thick;
   std::vector<Near> near;   // the points within the radius
-  std::vector<Key> sorted;  // their keys by (distance, index)
-  std::vector<std::uint32_t> bucket_of;
-  std::uint32_t bucket_start[kBuckets + 1];
+  std::vector<detail::Neighbour> keys, sorted;  // (distance, index, position in near)
+  detail::NeighbourOrder ordering;
   Vec3 nb[kNeighbours];
   double radius = 0.5 * reach;  // first guess; then from the previous sample's neighbourhood
   // The samples are the points with an index divisible by the stride, visited in grid order:
@@ -191,34 +185,17 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
     // anything. The first k are the k nearest; the nearest at a non-zero distance gives the
     // direction (exact duplicates say nothing about it); the sample is skipped when the k
     // nearest are all duplicates.
-    const double scale = static_cast<double>(kBuckets) / (r * r);
-    std::fill(std::begin(bucket_start), std::end(bucket_start), 0u);
-    bucket_of.resize(cnt);
+    keys.resize(cnt);
     sorted.resize(cnt);
-    for (std::uint32_t a = 0; a < cnt; ++a) {
-      bucket_of[a] = std::min(kBuckets - 1, static_cast<std::uint32_t>(near[a].d2 * scale));
-      ++bucket_start[bucket_of[a] + 1];
-    }
-    for (std::uint32_t b = 0; b < kBuckets; ++b) bucket_start[b + 1] += bucket_start[b];
-    for (std::uint32_t a = 0; a < cnt; ++a)
-      sorted[bucket_start[bucket_of[a]]++] = {near[a].d2, near[a].j, a};
-    for (std::size_t a = 1; a < cnt; ++a) {
-      if (!sorted[a].before(sorted[a - 1])) continue;
-      const Key c = sorted[a];
-      std::size_t b = a;
-      do {
-        sorted[b] = sorted[b - 1];
-        --b;
-      } while (b > 0 && c.before(sorted[b - 1]));
-      sorted[b] = c;
-    }
+    for (std::uint32_t a = 0; a < cnt; ++a) keys[a] = {near[a].d2, near[a].j, a};
+    ordering.sort(keys.data(), cnt, r * r, sorted.data());
     const double dk2 = sorted[k - 1].d2;  // squared distance of the k-th nearest
     radius = std::min(reach, 1.25 * std::sqrt(dk2));
     if (!(radius > 0)) radius = 0.5 * reach;
     std::size_t zeros = 0;
     while (zeros < k && sorted[zeros].d2 == 0) ++zeros;
     if (zeros == k) continue;
-    const std::uint32_t first = sorted[zeros].pos;
+    const std::uint32_t first = sorted[zeros].tag;
     const Near& nearest = near[first];
     d1s.push_back(std::sqrt(nearest.d2));
     const Vec3 u = nearest.d / std::sqrt(nearest.d2);
@@ -245,7 +222,7 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
     }
     if (std::isfinite(best)) d2s.push_back(std::sqrt(best));
     if (k >= 12) {
-      for (std::size_t a = 0; a < k; ++a) nb[a] = near[sorted[a].pos].d;
+      for (std::size_t a = 0; a < k; ++a) nb[a] = near[sorted[a].tag].d;
       thick.push_back(quadric_residual(nb, k, std::sqrt(dk2)));
     }
   }
