@@ -3,6 +3,7 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/normals.hpp"
 
+#include "block_points.hpp"
 #include "neighbour_order.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -213,48 +214,28 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
     // All points of a cell share the candidate set (the 27 cells around it): gather it once per
     // cell into flat arrays, then scan it for each point of the cell.
     const auto& order = grid.order();
-    std::vector<std::uint32_t> cand;
-    std::vector<double> cx, cy, cz, cd2;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;
+    detail::BlockPoints block;
+    std::vector<double> cd2;
     std::vector<std::uint32_t> best_t(k);
     std::vector<Picked> picked, sorted, top(k);
     detail::NeighbourOrder ordering;
     double threshold = std::numeric_limits<double>::infinity();
     grid.for_each_cell([&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first,
                            std::uint32_t last) {
-      ranges.clear();
-      std::size_t cnt = 0;
-      grid.for_each_block_range(x, y, z, 1, [&](std::uint32_t b, std::uint32_t e) {
-        ranges.emplace_back(b, e);
-        cnt += e - b;
-      });
+      const std::size_t cnt = block.gather(grid, x, y, z, 1, points);
       if (cnt < k + 1) {  // too few in the 27 cells (the point itself is one of them)
         for (std::uint32_t s = first; s < last; ++s) slow_point(order[s]);
         return;
       }
-      if (cand.size() < cnt) {
-        cand.resize(cnt);
-        cx.resize(cnt);
-        cy.resize(cnt);
-        cz.resize(cnt);
+      if (cd2.size() < cnt) {
         cd2.resize(cnt);
         picked.resize(cnt);
         sorted.resize(cnt);
       }
-      std::size_t t = 0;
-      for (const auto& [b, e] : ranges) {
-        for (std::uint32_t s = b; s < e; ++s, ++t) {
-          const std::uint32_t j = order[s];
-          const Vec3& q = points[j];
-          cand[t] = j;
-          cx[t] = q.x();
-          cy[t] = q.y();
-          cz[t] = q.z();
-        }
-      }
-      const double* xs = cx.data();
-      const double* ys = cy.data();
-      const double* zs = cz.data();
+      const std::uint32_t* cand = block.index.data();
+      const double* xs = block.x.data();
+      const double* ys = block.y.data();
+      const double* zs = block.z.data();
       double* ds = cd2.data();
       for (std::uint32_t s = first; s < last; ++s) {
         const std::uint32_t i = order[s];

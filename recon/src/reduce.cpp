@@ -14,6 +14,8 @@
 #include "scanmesh/recon/grid.hpp"
 #include "scanmesh/recon/normals.hpp"
 
+#include "block_points.hpp"
+
 namespace scanmesh::recon {
 namespace {
 
@@ -375,35 +377,18 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
     else
       repeated = true;
   }
-  std::vector<double> cx, cy, cz;
+  detail::BlockPoints block;
   std::vector<std::uint32_t> inside;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;
   grid.for_each_cell(
       [&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first, std::uint32_t last) {
         bool any = false;
         for (std::uint32_t s = first; s < last && !any; ++s) any = rep_of[order[s]] != kNone;
         if (!any) return;
-        ranges.clear();
-        std::size_t cnt = 0;
-        grid.for_each_block_range(x, y, z, 1, [&](std::uint32_t b, std::uint32_t e) {
-          ranges.emplace_back(b, e);
-          cnt += e - b;
-        });
-        if (cx.size() < cnt) {
-          cx.resize(cnt);
-          cy.resize(cnt);
-          cz.resize(cnt);
-          inside.resize(cnt);
-        }
-        std::size_t t = 0;
-        for (const auto& [b, e] : ranges) {
-          for (std::uint32_t s = b; s < e; ++s, ++t) {
-            const Vec3& q = input[order[s]];
-            cx[t] = q.x();
-            cy[t] = q.y();
-            cz[t] = q.z();
-          }
-        }
+        const std::size_t cnt = block.gather(grid, x, y, z, 1, input);
+        if (inside.size() < cnt) inside.resize(cnt);
+        const double* cx = block.x.data();
+        const double* cy = block.y.data();
+        const double* cz = block.z.data();
         for (std::uint32_t s = first; s < last; ++s) {
           const std::uint32_t rep = rep_of[order[s]];
           if (rep == kNone) continue;
