@@ -87,7 +87,6 @@ struct FrontEdge {
   std::uint32_t next_out;    // next outgoing front edge of vertex a
   std::uint32_t stamp;       // bumped on every (re)queue; stale heap entries are skipped
   bool alive;
-  bool failed;               // no candidate fitted, even relaxed
 };
 
 struct QueueItem {
@@ -158,7 +157,7 @@ class Builder {
       edges_.emplace_back();
     }
     FrontEdge& e = edges_[id];
-    e = FrontEdge{a, b, opp, kNone, kNone, head_out_[a], 0, true, false};
+    e = FrontEdge{a, b, opp, kNone, kNone, head_out_[a], 0, true};
     head_out_[a] = id;
     edges_map_.insert(a, b, id);
     return id;
@@ -172,11 +171,6 @@ class Builder {
     e.alive = false;
     ++e.stamp;
     free_edges_.push_back(id);
-  }
-  [[nodiscard]] std::size_t gaps(std::uint32_t v) const {
-    std::size_t g = 0;
-    for (std::uint32_t e = head_out_[v]; e != kNone; e = edges_[e].next_out) ++g;
-    return g;
   }
   void update_state(std::uint32_t v) {
     state_[v] = head_out_[v] == kNone ? VertexState::kDone : VertexState::kFront;
@@ -621,11 +615,7 @@ void Builder::grow() {
     for (std::uint32_t id : batch) {
       if (!edges_[id].alive) continue;
       const std::size_t before = tris_.size();
-      if (process(id, relaxed)) {
-        res_.relaxed_triangles += tris_.size() - before;
-      } else {
-        edges_[id].failed = true;
-      }
+      if (process(id, relaxed)) res_.relaxed_triangles += tris_.size() - before;
     }
   }
 }
