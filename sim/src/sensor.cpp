@@ -30,18 +30,6 @@ SensorKind sensor_kind_from_string(std::string_view name) {
   throw ConfigError("unknown sensor '" + std::string(name) + "' (valid: point, line, probe)");
 }
 
-std::string_view to_string(SensorStatus status) {
-  switch (status) {
-    case SensorStatus::kOk:
-      return "ok";
-    case SensorStatus::kNoTarget:
-      return "no_target";
-    case SensorStatus::kOverRange:
-      return "over_range";
-  }
-  return "?";
-}
-
 std::string_view to_string(SampleCause cause) {
   switch (cause) {
     case SampleCause::kOk:

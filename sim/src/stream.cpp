@@ -163,6 +163,10 @@ void StreamWriter::on_sensor(std::span<const SensorSample> samples) {
         case SensorStatus::kOverRange:
           line_ += 'R';
           break;
+        case SensorStatus::kAlarm:  // the simulated profiler reports no alarms or error codes
+        case SensorStatus::kDeviceError:
+          line_ += 'N';
+          break;
       }
     }
   } else {
@@ -447,8 +451,8 @@ RecordedStream parse_stream(std::string_view text, std::string_view name,
         if (st == "ok") {
           s.status = SensorStatus::kOk;
           s.value_mm = p.finite(tok[4], "value");
-        } else if (st == "no_target" || st == "over_range") {
-          s.status = st == "no_target" ? SensorStatus::kNoTarget : SensorStatus::kOverRange;
+        } else if (const auto status = drivers::sensor_status_from_string(st)) {
+          s.status = *status;
           s.value_mm = std::numeric_limits<double>::quiet_NaN();
         } else {
           p.fail("unknown status '" + std::string(st) + "'");
