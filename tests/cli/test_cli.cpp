@@ -456,3 +456,59 @@ TEST_CASE("generate is deterministic and documents its figures", "[cli]") {
     CHECK(k["points"].get<double>() == Approx(2400).margin(24));
   }
 }
+
+TEST_CASE("simulate: points, truth and stream of a noise-free scan agree", "[cli][sim]") {
+  TempDir dir;
+  const auto cloud = dir / "cloud.xyz";
+  const auto truth = dir / "truth.xyz";
+  const auto stream = dir / "scan.stream";
+  const auto r = run(dir, {"simulate", "--part", "sphere", "--sensor", "point", "--path",
+                           "raster", "--spacing", "1", "--line-spacing", "2", "--seed", "7", "-o",
+                           cloud.string(), "--truth", truth.string(), "--stream",
+                           stream.string(), "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  const auto points = scanmesh::meshio::read_points(cloud).points;
+  const auto truth_points = scanmesh::meshio::read_points(truth).points;
+  REQUIRE(j.at("points").get<std::size_t>() == points.size());
+  REQUIRE(points.size() > 100);
+  REQUIRE(truth_points.size() == points.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    worst = std::max(worst, (points[i] - truth_points[i]).norm());
+  CHECK(worst < 1e-6);  // no noise: each measured point is its surface point (text rounding)
+
+  SECTION("replaying the stream gives the same points") {
+    const auto again = dir / "again.xyz";
+    const auto rr = run(dir, {"simulate", "--replay", stream.string(), "-o", again.string(),
+                              "--json"});
+    INFO(describe(rr));
+    REQUIRE(rr.status == 0);
+    CHECK(slurp(again) == slurp(cloud));
+  }
+  SECTION("the same seed gives the same bytes, another seed other noise") {
+    auto noisy = [&](const char* seed, const char* name) {
+      const auto out = dir / name;
+      const auto rr = run(dir, {"simulate", "--part", "sphere", "--spacing", "1",
+                                "--line-spacing", "2", "--noise", "0.01", "--dropout", "0.1",
+                                "--seed", seed, "-o", out.string()});
+      REQUIRE(rr.status == 0);
+      return slurp(out);
+    };
+    const std::string a = noisy("1", "a.xyz");
+    CHECK(noisy("1", "b.xyz") == a);
+    CHECK(noisy("2", "c.xyz") != a);
+  }
+  SECTION("a damaged stream is refused with exit status 3, naming the file") {
+    std::string text = slurp(stream);
+    text[text.size() / 2] ^= 0x5;
+    const auto bad = dir / "bad.stream";
+    spit(bad, text);
+    const auto rr = run(dir, {"simulate", "--replay", bad.string(), "-o",
+                              (dir / "x.xyz").string()});
+    CHECK(rr.status == 3);
+    CHECK(rr.err.find("bad.stream") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir / "x.xyz"));
+  }
+}
