@@ -128,6 +128,7 @@ class UsbBulkStream final : public ByteStream {
 }  // namespace
 
 struct UsbContext::Impl {
+  libusb_context* ctx = nullptr;
   std::atomic<bool> stop{false};
   std::thread events;
   std::mutex mutex;
@@ -137,26 +138,39 @@ struct UsbContext::Impl {
 };
 
 UsbContext::UsbContext() : impl_(std::make_unique<Impl>()) {
-  const int r = libusb_init(&ctx_);
+  const int r = libusb_init(&impl_->ctx);
   if (r != 0) throw usb_error(r, "usb", "init");
-  impl_->events = std::thread([this] {
-    while (!impl_->stop.load()) {
+  impl_->events = std::thread([impl = impl_.get()] {
+    while (!impl->stop.load()) {
       timeval tv{0, 100000};  // wake up at least every 100 ms to notice stop
-      libusb_handle_events_timeout_completed(ctx_, &tv, nullptr);
+      libusb_handle_events_timeout_completed(impl->ctx, &tv, nullptr);
     }
   });
 }
 
+UsbContext::UsbContext(UsbContext&&) noexcept = default;
+UsbContext& UsbContext::operator=(UsbContext&& other) noexcept {
+  if (this != &other) {
+    UsbContext gone(std::move(*this));  // releases ours
+    impl_ = std::move(other.impl_);
+  }
+  return *this;
+}
+
+libusb_context* UsbContext::get() const { return impl_ ? impl_->ctx : nullptr; }
+
 UsbContext::~UsbContext() {
+  if (!impl_) return;  // moved from
+  libusb_context* ctx = impl_->ctx;
   {
     std::lock_guard lock(impl_->mutex);
-    for (auto& [id, h] : impl_->handles) libusb_hotplug_deregister_callback(ctx_, h);
+    for (auto& [id, h] : impl_->handles) libusb_hotplug_deregister_callback(ctx, h);
     impl_->handles.clear();
   }
   impl_->stop.store(true);
-  libusb_interrupt_event_handler(ctx_);
+  libusb_interrupt_event_handler(ctx);
   if (impl_->events.joinable()) impl_->events.join();
-  libusb_exit(ctx_);
+  libusb_exit(ctx);
 }
 
 bool UsbContext::has_hotplug() const {
@@ -179,7 +193,7 @@ int UsbContext::watch(std::uint16_t vid, std::uint16_t pid,
   };
   libusb_hotplug_callback_handle handle = 0;
   const int r = libusb_hotplug_register_callback(
-      ctx_,
+      get(),
       static_cast<libusb_hotplug_event>(LIBUSB_HOTPLUG_EVENT_DEVICE_ARRIVED |
                                         LIBUSB_HOTPLUG_EVENT_DEVICE_LEFT),
       LIBUSB_HOTPLUG_ENUMERATE, vid ? vid : LIBUSB_HOTPLUG_MATCH_ANY,
@@ -197,7 +211,7 @@ void UsbContext::unwatch(int id) {
   std::lock_guard lock(impl_->mutex);
   const auto it = impl_->handles.find(id);
   if (it == impl_->handles.end()) return;
-  libusb_hotplug_deregister_callback(ctx_, it->second);
+  libusb_hotplug_deregister_callback(get(), it->second);
   impl_->handles.erase(it);
   // The callback object stays alive until the context dies: a callback already running on the
   // event thread may still use it.

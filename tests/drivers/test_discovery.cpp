@@ -73,7 +73,10 @@ TEST_CASE("libserialport and libusb enumerate without error", "[drivers][discove
 }
 
 TEST_CASE("libusb context: hotplug watch and a missing device", "[drivers][usb]") {
-  UsbContext ctx;
+  UsbContext first;
+  UsbContext ctx(std::move(first));  // move-only owner: the event thread follows the context
+  CHECK(first.get() == nullptr);
+  REQUIRE(ctx.get() != nullptr);
   if (ctx.has_hotplug()) {
     const int id = ctx.watch(0x1234, 0x5678, [](UsbEvent, const UsbDeviceInfo&) {});
     CHECK(id > 0);

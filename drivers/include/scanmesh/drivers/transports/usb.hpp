@@ -26,10 +26,12 @@ class UsbContext {
  public:
   UsbContext();  ///< throws DeviceError
   ~UsbContext();
+  UsbContext(UsbContext&&) noexcept;
+  UsbContext& operator=(UsbContext&&) noexcept;
   UsbContext(const UsbContext&) = delete;
   UsbContext& operator=(const UsbContext&) = delete;
 
-  libusb_context* get() const { return ctx_; }
+  libusb_context* get() const;
 
   /// Whether this libusb build can deliver hotplug events (Linux: yes, via udev/netlink).
   bool has_hotplug() const;
@@ -40,8 +42,7 @@ class UsbContext {
   void unwatch(int handle);
 
  private:
-  struct Impl;
-  libusb_context* ctx_ = nullptr;
+  struct Impl;  // the context, its event thread and the hotplug registrations (stable address)
   std::unique_ptr<Impl> impl_;
 };
 
