@@ -14,6 +14,8 @@ PACKAGES=(
   # device layer and daemon
   libboost-dev libboost-system-dev libmodbus-dev libserialport-dev libusb-1.0-0-dev
   libsystemd-dev systemd libtomlplusplus-dev libsqlite3-dev
+  # benchmarks only: Embree, to compare the simulator's own BVH against (bench/bench_bvh)
+  libembree-dev
 )
 
 missing=()
