@@ -6,6 +6,7 @@
 
 #include "commands.hpp"
 #include "scanmesh/common/error.hpp"
+#include "scanmesh/drivers/error.hpp"
 
 int main(int argc, char** argv) {
   using namespace scanmesh;
@@ -17,6 +18,7 @@ int main(int argc, char** argv) {
   cli::add_deviation_command(app, run);
   cli::add_generate_command(app, run);
   cli::add_simulate_command(app, run);
+  cli::add_devices_command(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -29,6 +31,9 @@ int main(int argc, char** argv) {
   }
   try {
     return run ? run() : cli::kExitUsage;
+  } catch (const drivers::DeviceError& e) {
+    std::cerr << "scanmesh: " << e.what() << "\n";
+    return cli::kExitDevice;
   } catch (const ConfigError& e) {
     std::cerr << "scanmesh: " << e.what() << "\n";
     return cli::kExitUsage;
