@@ -38,8 +38,7 @@ CodecFigures bench_modbus_sensor() {
   const auto t0 = std::chrono::steady_clock::now();
   for (int r = 0; r < rounds; ++r) {
     for (std::size_t i = 0; i < images; ++i) {
-      const mb::Measurement m =
-          decoder.decode(std::span(regs).subspan(i * per_image, per_image));
+      const mb::Measurement m = decoder.decode(std::span(regs).subspan(i * per_image, per_image));
       ++decoded;
       if (m.status == drivers::SensorStatus::kOk) sum += m.value_mm;
     }

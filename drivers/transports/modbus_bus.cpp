@@ -21,9 +21,9 @@ namespace {
 DeviceError modbus_error(const std::string& device, const std::string& operation, int err) {
   const std::string text = modbus_strerror(err);
   if (err == ETIMEDOUT) return {DeviceErrorKind::kTimeout, device, operation, text};
-  if (err == ECONNREFUSED || err == ECONNRESET || err == EPIPE || err == EBADF ||
-      err == ENOTCONN || err == ECONNABORTED || err == EHOSTUNREACH || err == ENETUNREACH ||
-      err == EIO || err == ENXIO) {
+  if (err == ECONNREFUSED || err == ECONNRESET || err == EPIPE || err == EBADF || err == ENOTCONN ||
+      err == ECONNABORTED || err == EHOSTUNREACH || err == ENETUNREACH || err == EIO ||
+      err == ENXIO) {
     return {DeviceErrorKind::kDisconnected, device, operation, text};
   }
   if (err == ENOENT || err == ENODEV) return {DeviceErrorKind::kNotFound, device, operation, text};
@@ -48,8 +48,8 @@ class ModbusBus final : public RegisterBus {
 
   void read_registers(RegisterKind kind, std::uint16_t address,
                       std::span<std::uint16_t> out) override {
-    const char* fc = kind == RegisterKind::kInput ? "FC04 read input registers"
-                                                  : "FC03 read holding registers";
+    const char* fc =
+        kind == RegisterKind::kInput ? "FC04 read input registers" : "FC03 read holding registers";
     const std::string op = range_text(fc, address, out.size());
     if (out.empty() || out.size() > MODBUS_MAX_READ_REGISTERS)
       throw DeviceError(DeviceErrorKind::kProtocol, name_, op, "count must be 1..125");
@@ -67,8 +67,8 @@ class ModbusBus final : public RegisterBus {
 
   void write_registers(std::uint16_t address, std::span<const std::uint16_t> values) override {
     const bool single = values.size() == 1;
-    const std::string op = range_text(single ? "FC06 write register" : "FC16 write registers",
-                                      address, values.size());
+    const std::string op =
+        range_text(single ? "FC06 write register" : "FC16 write registers", address, values.size());
     if (values.empty() || values.size() > MODBUS_MAX_WRITE_REGISTERS)
       throw DeviceError(DeviceErrorKind::kProtocol, name_, op, "count must be 1..123");
     recover(op);
@@ -85,8 +85,7 @@ class ModbusBus final : public RegisterBus {
     const int err = errno;
     DeviceError e = modbus_error(name_, op, err);
     // A timed-out or garbled exchange may leave a late reply in flight: resynchronise first.
-    if (e.kind() == DeviceErrorKind::kTimeout ||
-        (err >= EMBBADCRC && err <= EMBBADSLAVE))
+    if (e.kind() == DeviceErrorKind::kTimeout || (err >= EMBBADCRC && err <= EMBBADSLAVE))
       dirty_ = true;
     throw e;
   }

@@ -131,25 +131,45 @@ TEST_CASE("ild1420 codec: binary stream table", "[drivers][microepsilon]") {
       {"one distance value", 1, word(32760), {32760}, 0},
       {"18-bit error code", 1, word(262076), {262076}, 0},
       {"two values in one chunk", 1, cat({word(1), word(65520)}), {1, 65520}, 0},
-      {"leading garbage (ASCII and H-shaped bytes)", 1,
-       cat({text("\xFE\x13~#"), Bytes{0x00}, word(4242)}), {4242}, 1},
+      {"leading garbage (ASCII and H-shaped bytes)",
+       1,
+       cat({text("\xFE\x13~#"), Bytes{0x00}, word(4242)}),
+       {4242},
+       1},
       {"leading lone M and H bytes", 1, cat({Bytes{0x55, 0xC3}, word(7)}), {7}, 1},
-      {"dropped M byte: value lost, next one fine", 1,
-       cat({Bytes{word(100)[0], word(100)[2]}, word(200)}), {200}, 1},
+      {"dropped M byte: value lost, next one fine",
+       1,
+       cat({Bytes{word(100)[0], word(100)[2]}, word(200)}),
+       {200},
+       1},
       {"dropped L byte", 1, cat({Bytes{word(100)[1], word(100)[2]}, word(200)}), {200}, 1},
-      {"corrupted marker (H byte turned into an L)", 1,
-       cat({Bytes{word(100)[0], word(100)[1], 0x05}, word(300)}), {300}, 1},
+      {"corrupted marker (H byte turned into an L)",
+       1,
+       cat({Bytes{word(100)[0], word(100)[1], 0x05}, word(300)}),
+       {300},
+       1},
       {"truncated value: nothing yet", 1, Bytes{word(100)[0], word(100)[1]}, {}, 0},
       {"4-value block", 4, block({10, 20, 30, 40}), {10, 20, 30, 40}, 0},
-      {"two 4-value blocks", 4, cat({block({1, 2, 3, 4}), block({5, 6, 7, 8})}),
-       {1, 2, 3, 4, 5, 6, 7, 8}, 0},
-      {"block joined mid-way (additional values first) is skipped", 4,
-       cat({word(3, false), word(4, false), block({5, 6, 7, 8})}), {5, 6, 7, 8}, 2},
-      {"short block (value lost inside)", 4,
+      {"two 4-value blocks",
+       4,
+       cat({block({1, 2, 3, 4}), block({5, 6, 7, 8})}),
+       {1, 2, 3, 4, 5, 6, 7, 8},
+       0},
+      {"block joined mid-way (additional values first) is skipped",
+       4,
+       cat({word(3, false), word(4, false), block({5, 6, 7, 8})}),
+       {5, 6, 7, 8},
+       2},
+      {"short block (value lost inside)",
+       4,
        cat({word(1, true), word(2, false), Bytes{0x01, 0x81}, word(4, false), block({5, 6, 7, 8})}),
-       {5, 6, 7, 8}, 2},
-      {"long block", 2, cat({word(1, true), word(2, false), word(3, false), block({5, 6})}),
-       {1, 2, 5, 6}, 1},
+       {5, 6, 7, 8},
+       2},
+      {"long block",
+       2,
+       cat({word(1, true), word(2, false), word(3, false), block({5, 6})}),
+       {1, 2, 5, 6},
+       1},
   };
   for (const auto& c : cases) {
     INFO(c.legend);
@@ -333,7 +353,8 @@ TEST_CASE("ild1420 codec: commands and replies with interleaved binary values",
   }
 }
 
-TEST_CASE("ild1420 device: identity, values, exact commands on the wire", "[drivers][microepsilon]") {
+TEST_CASE("ild1420 device: identity, values, exact commands on the wire",
+          "[drivers][microepsilon]") {
   scanmesh::test::TempDir dir;
   const std::string link = (dir / "ttyILD").string();
   MicroEpsilonIld1420Emulator emu(link, scanmesh::sim::scripted_values({1.0, 2.5, 7.25}));
@@ -364,7 +385,8 @@ TEST_CASE("ild1420 device: identity, values, exact commands on the wire", "[driv
     INFO(i);
     CHECK(samples[i].seq == i);
     CHECK(samples[i].status == SensorStatus::kOk);
-    CHECK(samples[i].value_mm == Approx(std::vector<double>{1.0, 2.5, 7.25}[(k + i) % 3]).margin(2e-4));
+    CHECK(samples[i].value_mm ==
+          Approx(std::vector<double>{1.0, 2.5, 7.25}[(k + i) % 3]).margin(2e-4));
   }
   CHECK(dev.stats().malformed == 0);
 }
@@ -505,12 +527,14 @@ TEST_CASE("ild1420 device: garbage, split bytes, late and missing data, vanish; 
     REQUIRE(wait_until([&] { return dev.stats().timeouts >= 1; }));
     emu.set_faults({});
     const auto n = c.count();
-    REQUIRE(wait_until([&] { return c.count() >= n + 10 && dev.state() == DeviceState::kAcquiring; }));
+    REQUIRE(
+        wait_until([&] { return c.count() >= n + 10 && dev.state() == DeviceState::kAcquiring; }));
   }
   SECTION("silence -> kLost, then reconnect when it talks again") {
     emu.set_faults(SerialFaults{false, false, false, false, true, 0ms});
     REQUIRE(wait_until([&] { return dev.state() == DeviceState::kLost; }));
-    CHECK_THAT(c.reason(DeviceState::kLost), Catch::StartsWith("ild0: lost: no data for 3 x 150 ms"));
+    CHECK_THAT(c.reason(DeviceState::kLost),
+               Catch::StartsWith("ild0: lost: no data for 3 x 150 ms"));
     CHECK(dev.stats().timeouts >= 3);
     emu.set_faults({});
     REQUIRE(wait_until([&] { return dev.stats().reconnects >= 1; }));

@@ -180,8 +180,8 @@ TEST_CASE("modbus rtu over a pty: reads, writes, wrong unit, vanish", "[drivers]
   CHECK(emu.holding_registers(180, 2) == w);
   const auto reqs = emu.requests();
   REQUIRE(reqs.size() == 2);
-  CHECK((reqs[0].unit == 7 && reqs[0].function == 4 && reqs[0].address == 200 &&
-         reqs[0].count == 4));
+  CHECK(
+      (reqs[0].unit == 7 && reqs[0].function == 4 && reqs[0].address == 200 && reqs[0].count == 4));
   CHECK((reqs[1].function == 16 && reqs[1].address == 180));
 
   // Another unit on the bus does not answer: a timeout.

@@ -116,19 +116,28 @@ TEST_CASE("modbus codec: field decoding table", "[drivers][modbus]") {
       {"u16", field("quality", 0, FieldType::kU16), {0xFFFF}, 65535},
       {"i16 negative", field("quality", 0, FieldType::kI16), {0xFFFE}, -2},
       {"u32 low word first", field("distance", 0, FieldType::kU32), {0x5678, 0x1234}, 0x12345678},
-      {"u32 high word first", field("distance", 0, FieldType::kU32, WordOrder::kHighFirst),
-       {0x1234, 0x5678}, 0x12345678},
+      {"u32 high word first",
+       field("distance", 0, FieldType::kU32, WordOrder::kHighFirst),
+       {0x1234, 0x5678},
+       0x12345678},
       {"i32 high first -123456 (Leadshine style)",
-       field("distance", 0, FieldType::kI32, WordOrder::kHighFirst), {0xFFFE, 0x1DC0}, -123456},
+       field("distance", 0, FieldType::kI32, WordOrder::kHighFirst),
+       {0xFFFE, 0x1DC0},
+       -123456},
       {"i32 low first -1", field("distance", 0, FieldType::kI32), {0xFFFF, 0xFFFF}, -1},
-      {"u16 scale+offset", field("distance", 0, FieldType::kU16, WordOrder::kLowFirst, 0.01, 5),
-       {1234}, 17.34},
-      {"bit 1 set", field("alarm", 0, FieldType::kU16, WordOrder::kLowFirst, 1, 0, 1), {0x0003},
+      {"u16 scale+offset",
+       field("distance", 0, FieldType::kU16, WordOrder::kLowFirst, 0.01, 5),
+       {1234},
+       17.34},
+      {"bit 1 set", field("alarm", 0, FieldType::kU16, WordOrder::kLowFirst, 1, 0, 1), {0x0003}, 1},
+      {"bit 1 clear",
+       field("alarm", 0, FieldType::kU16, WordOrder::kLowFirst, 1, 0, 1),
+       {0x0001},
+       0},
+      {"bit 17 of u32",
+       field("alarm", 0, FieldType::kU32, WordOrder::kLowFirst, 1, 0, 17),
+       {0x0000, 0x0002},
        1},
-      {"bit 1 clear", field("alarm", 0, FieldType::kU16, WordOrder::kLowFirst, 1, 0, 1),
-       {0x0001}, 0},
-      {"bit 17 of u32", field("alarm", 0, FieldType::kU32, WordOrder::kLowFirst, 1, 0, 17),
-       {0x0000, 0x0002}, 1},
   };
   for (const auto& c : cases) {
     INFO(c.legend);
@@ -138,8 +147,8 @@ TEST_CASE("modbus codec: field decoding table", "[drivers][modbus]") {
     CHECK(decode_field(c.f, back) == Approx(c.expected));
   }
   // Too few registers: NaN, never a read past the end.
-  CHECK(std::isnan(decode_field(field("distance", 0, FieldType::kF32),
-                                std::vector<std::uint16_t>{0x7C37})));
+  CHECK(std::isnan(
+      decode_field(field("distance", 0, FieldType::kF32), std::vector<std::uint16_t>{0x7C37})));
 }
 
 TEST_CASE("modbus codec: Baumer manual example 202=0x7C37 203=0x428B is 69.7426 mm",
@@ -185,8 +194,7 @@ TEST_CASE("modbus codec: Baumer map plans one 13-register FC04 request and decod
       {"ok", image(0, 1, 0x7C37, 0x428B), SensorStatus::kOk, 0},
       {"weak quality still ok", image(1, 0, 0x7C37, 0x428B), SensorStatus::kOk, 0},
       {"critical quality -> alarm", image(2, 0, 0x7C37, 0x428B), SensorStatus::kAlarm, 2},
-      {"alarm bit -> alarm, code = outputs", image(0, 3, 0x7C37, 0x428B), SensorStatus::kAlarm,
-       3},
+      {"alarm bit -> alarm, code = outputs", image(0, 3, 0x7C37, 0x428B), SensorStatus::kAlarm, 3},
       {"NaN distance -> no target", image(2, 0, 0x0000, 0x7FC0), SensorStatus::kNoTarget, 0},
       {"+inf distance -> no target", image(2, 0, 0x0000, 0x7F80), SensorStatus::kNoTarget, 0},
   };
@@ -272,9 +280,9 @@ TEST_CASE("modbus profile: the shipped baumer-om30.toml equals the built-in map"
     CHECK(file.fields[i].offset == built.fields[i].offset);
     CHECK(file.fields[i].bit == built.fields[i].bit);
   }
-  for (auto [a, b] : {std::pair{&file.vendor, &built.vendor}, std::pair{&file.model, &built.model},
-                      std::pair{&file.serial, &built.serial},
-                      std::pair{&file.firmware, &built.firmware}}) {
+  for (auto [a, b] :
+       {std::pair{&file.vendor, &built.vendor}, std::pair{&file.model, &built.model},
+        std::pair{&file.serial, &built.serial}, std::pair{&file.firmware, &built.firmware}}) {
     REQUIRE(a->has_value());
     CHECK((*a)->address == (*b)->address);
     CHECK((*a)->count == (*b)->count);
@@ -321,9 +329,9 @@ TEST_CASE("modbus sensor device: Baumer OM30 over TCP, values, identity, wire re
                                             "12345678", "1.2.3");
   emu.start();
   const int port = emu.port();
-  Device dev(fast_options(), [port] {
-    return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms);
-  }, baumer_om30_map());
+  Device dev(
+      fast_options(), [port] { return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms); },
+      baumer_om30_map());
   dev.open();
   CHECK(dev.state() == DeviceState::kOpen);
   const DeviceIdentity id = dev.identify();
@@ -381,13 +389,13 @@ TEST_CASE("modbus sensor device: Baumer OM30 over TCP, values, identity, wire re
 
 TEST_CASE("modbus sensor device: exceptions, late replies, silence, vanish; then recovery",
           "[drivers][modbus]") {
-  ModbusTcpEmulator emu(scanmesh::sim::scripted_values({42.0}),
-                        scanmesh::sim::baumer_om30_image(), 1, 0);
+  ModbusTcpEmulator emu(scanmesh::sim::scripted_values({42.0}), scanmesh::sim::baumer_om30_image(),
+                        1, 0);
   emu.start();
   const int port = emu.port();
-  Device dev(fast_options(), [port] {
-    return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms);
-  }, baumer_om30_map());
+  Device dev(
+      fast_options(), [port] { return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms); },
+      baumer_om30_map());
   dev.open();
   Collector c;
   dev.start(c.callbacks());
@@ -444,14 +452,14 @@ TEST_CASE("modbus sensor device: exceptions, late replies, silence, vanish; then
 
 TEST_CASE("modbus sensor device: open() errors name the device and the operation",
           "[drivers][modbus]") {
-  ModbusTcpEmulator emu(scanmesh::sim::scripted_values({1.0}),
-                        scanmesh::sim::baumer_om30_image(), 1, 0);
+  ModbusTcpEmulator emu(scanmesh::sim::scripted_values({1.0}), scanmesh::sim::baumer_om30_image(),
+                        1, 0);
   emu.start();
   const int port = emu.port();
   emu.set_faults(ModbusFaults{2, 0ms, false});
-  Device dev(fast_options(), [port] {
-    return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms);
-  }, baumer_om30_map());
+  Device dev(
+      fast_options(), [port] { return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms); },
+      baumer_om30_map());
   try {
     dev.open();
     FAIL("opened");
@@ -475,9 +483,9 @@ TEST_CASE("modbus sensor device: Baumer OM30 over RTU on a pty", "[drivers][modb
                                        scanmesh::sim::baumer_om30_image(), 1);
   scanmesh::sim::write_baumer_om30_identity(emu, "Baumer", "OM30", "42", "2.0");
   emu.start();
-  Device dev(fast_options(), [link] {
-    return open_modbus_rtu("om0", link, 115200, 'N', 8, 1, 1, 150ms);
-  }, load_register_map_profile(baumer_profile_path()));
+  Device dev(
+      fast_options(), [link] { return open_modbus_rtu("om0", link, 115200, 'N', 8, 1, 1, 150ms); },
+      load_register_map_profile(baumer_profile_path()));
   dev.open();
   CHECK(dev.identify().model == "OM30");
   Collector c;

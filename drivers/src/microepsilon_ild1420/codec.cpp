@@ -27,7 +27,8 @@ std::string_view trim(std::string_view s) {
 }
 
 bool coded_line(const std::string& line, char letter) {
-  return line.size() >= 4 && line[0] == letter && std::isdigit(static_cast<unsigned char>(line[1])) &&
+  return line.size() >= 4 && line[0] == letter &&
+         std::isdigit(static_cast<unsigned char>(line[1])) &&
          std::isdigit(static_cast<unsigned char>(line[2])) &&
          std::isdigit(static_cast<unsigned char>(line[3])) &&
          (line.size() == 4 || line[4] == ' ' || line[4] == ':');
@@ -62,9 +63,10 @@ std::string_view to_string(Malformed m) {
 }
 
 std::array<std::uint8_t, 3> encode_word(std::uint32_t word, bool first_of_block) {
-  return {static_cast<std::uint8_t>(word & 0x3FU),
-          static_cast<std::uint8_t>(0x40U | ((word >> 6) & 0x3FU)),
-          static_cast<std::uint8_t>(0x80U | (first_of_block ? 0U : 0x40U) | ((word >> 12) & 0x3FU))};
+  return {
+      static_cast<std::uint8_t>(word & 0x3FU),
+      static_cast<std::uint8_t>(0x40U | ((word >> 6) & 0x3FU)),
+      static_cast<std::uint8_t>(0x80U | (first_of_block ? 0U : 0x40U) | ((word >> 12) & 0x3FU))};
 }
 
 void decode_distance(std::uint32_t raw, const Scaling& scaling, DecodedBlock& out) {
@@ -265,8 +267,8 @@ Info parse_info(const Reply& reply) {
       info.identity.firmware = value;
     } else if (key == "measuring range") {
       std::size_t n = 0;
-      while (n < value.size() && (std::isdigit(static_cast<unsigned char>(value[n])) ||
-                                  value[n] == '.'))
+      while (n < value.size() &&
+             (std::isdigit(static_cast<unsigned char>(value[n])) || value[n] == '.'))
         ++n;
       double mr = 0;
       if (n > 0 && parse_fixed_decimal(value.substr(0, n), mr) && mr > 0) {

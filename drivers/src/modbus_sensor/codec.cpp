@@ -45,8 +45,8 @@ std::string_view to_string(FieldType type) {
 }
 
 std::optional<FieldType> field_type_from_string(std::string_view word) {
-  for (auto t : {FieldType::kU16, FieldType::kI16, FieldType::kU32, FieldType::kI32,
-                 FieldType::kF32}) {
+  for (auto t :
+       {FieldType::kU16, FieldType::kI16, FieldType::kU32, FieldType::kI32, FieldType::kF32}) {
     if (to_string(t) == word) return t;
   }
   return std::nullopt;
@@ -115,10 +115,8 @@ RegisterMap baumer_om30_map() {
       {"quality", RegisterKind::kInput, 200, FieldType::kU16, WordOrder::kLowFirst, 1, 0, -1},
       {"alarm", RegisterKind::kInput, 201, FieldType::kU16, WordOrder::kLowFirst, 1, 0, 1},
       {"distance", RegisterKind::kInput, 202, FieldType::kF32, WordOrder::kLowFirst, 1, 0, -1},
-      {"timestamp_s", RegisterKind::kInput, 209, FieldType::kU32, WordOrder::kLowFirst, 1, 0,
-       -1},
-      {"timestamp_us", RegisterKind::kInput, 211, FieldType::kU32, WordOrder::kLowFirst, 1, 0,
-       -1},
+      {"timestamp_s", RegisterKind::kInput, 209, FieldType::kU32, WordOrder::kLowFirst, 1, 0, -1},
+      {"timestamp_us", RegisterKind::kInput, 211, FieldType::kU32, WordOrder::kLowFirst, 1, 0, -1},
   };
   m.vendor = RegisterString{RegisterKind::kInput, 0, 16};
   m.model = RegisterString{RegisterKind::kInput, 32, 26};
@@ -171,9 +169,9 @@ void encode_field(const RegisterField& f, double value, std::span<std::uint16_t>
       break;
     case FieldType::kI16:
     case FieldType::kI32:
-      bits = std::isfinite(raw) ? static_cast<std::uint32_t>(
-                                      static_cast<std::int32_t>(std::llround(raw)))
-                                : 0;
+      bits = std::isfinite(raw)
+                 ? static_cast<std::uint32_t>(static_cast<std::int32_t>(std::llround(raw)))
+                 : 0;
       break;
     case FieldType::kF32:
       bits = std::bit_cast<std::uint32_t>(static_cast<float>(raw));

@@ -130,8 +130,8 @@ void Device::run(Worker& worker) {
       s.seq = seq_.next();
       s.t_device = m.t_device;
       s.status = m.status;
-      s.value_mm = m.status == SensorStatus::kOk ? m.value_mm
-                                                 : std::numeric_limits<double>::quiet_NaN();
+      s.value_mm =
+          m.status == SensorStatus::kOk ? m.value_mm : std::numeric_limits<double>::quiet_NaN();
       s.device_code = m.device_code;
       stats_.samples.fetch_add(1);
       if (callbacks_.on_sample) callbacks_.on_sample(s);
@@ -140,8 +140,8 @@ void Device::run(Worker& worker) {
         case DeviceErrorKind::kTimeout:
           stats_.timeouts.fetch_add(1);
           if (++consecutive_timeouts >= options_.timeouts_until_lost) {
-            lost_reason = std::to_string(consecutive_timeouts) + " consecutive timeouts (" +
-                          e.what() + ")";
+            lost_reason =
+                std::to_string(consecutive_timeouts) + " consecutive timeouts (" + e.what() + ")";
           }
           break;
         case DeviceErrorKind::kProtocol:

@@ -2,13 +2,14 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/sim/emulators/microepsilon_ild1420.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
 namespace scanmesh::sim {
 
-MicroEpsilonIld1420Emulator::MicroEpsilonIld1420Emulator(std::string link_path,
-                                                         ValueSource values,
+MicroEpsilonIld1420Emulator::MicroEpsilonIld1420Emulator(std::string link_path, ValueSource values,
                                                          Ild1420EmulatorOptions options)
     : SerialEmulator(std::move(link_path), std::move(values)),
       options_(std::move(options)),

@@ -114,8 +114,7 @@ std::vector<ModbusRequest> ModbusEmulator::requests() const {
   return requests_;
 }
 
-void ModbusEmulator::handle(void* ctx, const std::uint8_t* req, int length,
-                            std::stop_token& stop) {
+void ModbusEmulator::handle(void* ctx, const std::uint8_t* req, int length, std::stop_token& stop) {
   const int hl = modbus_get_header_length(mb(ctx));
   if (length < hl + 1) return;
   ModbusRequest r;
@@ -225,10 +224,9 @@ void ModbusTcpEmulator::serve(std::stop_token stop) {
 // ---------------------------------------------------------------------------------------------
 // ModbusRtuEmulator
 
-ModbusRtuEmulator::ModbusRtuEmulator(std::string link_path, ValueSource values,
-                                     ModbusImage image, int unit)
-    : ModbusEmulator(std::move(values), std::move(image), unit),
-      link_path_(std::move(link_path)) {}
+ModbusRtuEmulator::ModbusRtuEmulator(std::string link_path, ValueSource values, ModbusImage image,
+                                     int unit)
+    : ModbusEmulator(std::move(values), std::move(image), unit), link_path_(std::move(link_path)) {}
 
 ModbusRtuEmulator::~ModbusRtuEmulator() { stop(); }
 
@@ -280,7 +278,7 @@ ModbusImage baumer_om30_image(double measurement_rate_hz) {
   image.first = 200;
   image.count = 13;
   image.write = [measurement_rate_hz, n](std::span<std::uint16_t> input, std::span<std::uint16_t>,
-                                  const drivers::SensorSample& s) mutable {
+                                         const drivers::SensorSample& s) mutable {
     using drivers::SensorStatus;
     std::uint16_t quality = 0;
     std::uint16_t outputs = 0x0001;  // bit 0: switching output (not used by the driver)
@@ -309,7 +307,7 @@ ModbusImage baumer_om30_image(double measurement_rate_hz) {
     put_u32_low_first(input, 202, std::bit_cast<std::uint32_t>(distance));
     put_u32_low_first(input, 204,
                       std::bit_cast<std::uint32_t>(static_cast<float>(measurement_rate_hz)));
-    input[206] = 100;                  // exposure reserve
+    input[206] = 100;                    // exposure reserve
     put_u32_low_first(input, 207, 500);  // response delay, µs
     std::uint64_t us = 0;
     if (s.t_device) {

@@ -66,6 +66,8 @@ struct BlockLayout {
   std::string check() const;
 };
 
+/// Factory baud rate of the RS422 link (8N1); the maximum is 1 MBaud.
+constexpr unsigned kDefaultBaud = 921600;
 constexpr std::size_t kMaxBlockValues = 8;
 constexpr std::uint32_t kFirstErrorCode = 262075;
 constexpr std::uint32_t kLastErrorCode = 262082;
@@ -85,10 +87,10 @@ struct RawBlock {
 
 /// Why bytes were thrown away.
 enum class Malformed : std::uint8_t {
-  kBrokenValue,   ///< L/M/H out of order (garbage, a dropped or corrupted byte)
-  kOrphanValue,   ///< an "additional value" with no block start before it (after resync)
-  kShortBlock,    ///< a new block started before the current one was complete
-  kLongBlock,     ///< more values than the layout has
+  kBrokenValue,  ///< L/M/H out of order (garbage, a dropped or corrupted byte)
+  kOrphanValue,  ///< an "additional value" with no block start before it (after resync)
+  kShortBlock,   ///< a new block started before the current one was complete
+  kLongBlock,    ///< more values than the layout has
 };
 constexpr std::size_t kMalformedKinds = 4;
 std::string_view to_string(Malformed m);
@@ -98,9 +100,9 @@ std::string_view to_string(Malformed m);
 class StreamDecoder {
  public:
   explicit StreamDecoder(std::size_t values_per_block = 1)
-      : per_block_(values_per_block == 0 || values_per_block > kMaxBlockValues
-                       ? 1
-                       : values_per_block) {}
+      : per_block_(values_per_block == 0 || values_per_block > kMaxBlockValues ? 1
+                                                                               : values_per_block) {
+  }
 
   template <class F>
   void feed(std::span<const std::uint8_t> bytes, F&& on_block) {
@@ -136,8 +138,7 @@ class StreamDecoder {
         phase_ = 0;
       } else {
         phase_ = 0;
-        complete(word_ | (static_cast<std::uint32_t>(b & 0x3FU) << 12), (b & 0x40U) != 0,
-                 on_block);
+        complete(word_ | (static_cast<std::uint32_t>(b & 0x3FU) << 12), (b & 0x40U) != 0, on_block);
       }
     }
   }
@@ -216,15 +217,14 @@ struct DecodedBlock {
   SensorStatus status = SensorStatus::kNoTarget;
   double value_mm = 0;  ///< NaN unless kOk
   std::uint32_t device_code = 0;
-  std::optional<std::uint32_t> counter;   ///< 18-bit measurement counter
-  std::optional<Timestamp> t_device;      ///< device clock (10 µs ticks)
+  std::optional<std::uint32_t> counter;  ///< 18-bit measurement counter
+  std::optional<Timestamp> t_device;     ///< device clock (10 µs ticks)
 };
 
 /// Distance word -> status/value (see the header comment for the rules).
 void decode_distance(std::uint32_t raw, const Scaling& scaling, DecodedBlock& out);
 /// Whole block per layout. Pure.
-DecodedBlock decode_block(const RawBlock& block, const BlockLayout& layout,
-                          const Scaling& scaling);
+DecodedBlock decode_block(const RawBlock& block, const BlockLayout& layout, const Scaling& scaling);
 /// Inverse scaling for emulators: distance -> raw word (clamped to 0..65520).
 std::uint32_t encode_distance(double value_mm, const Scaling& scaling);
 
@@ -244,9 +244,9 @@ Command meas_rate(double khz);
 
 /// A complete reply: the lines before the prompt.
 struct Reply {
-  std::vector<std::string> lines;      ///< every line except errors/warnings
-  std::string error;                   ///< "E104 Timeout" (empty when none)
-  std::vector<std::string> warnings;   ///< "W...." lines
+  std::vector<std::string> lines;     ///< every line except errors/warnings
+  std::string error;                  ///< "E104 Timeout" (empty when none)
+  std::vector<std::string> warnings;  ///< "W...." lines
   bool ok() const { return error.empty(); }
 };
 

@@ -51,12 +51,12 @@ struct RegisterField {
   /// "timestamp_us" (device clock, seconds and microseconds parts).
   std::string name;
   RegisterKind kind = RegisterKind::kInput;
-  std::uint16_t address = 0;        ///< first register, 0-based PDU address
+  std::uint16_t address = 0;  ///< first register, 0-based PDU address
   FieldType type = FieldType::kU16;
   WordOrder word_order = WordOrder::kLowFirst;  ///< 32-bit types only
-  double scale = 1;                 ///< finite, non-zero. Default 1
-  double offset = 0;                ///< finite. Default 0
-  int bit = -1;                     ///< -1 = whole value; 0..31 = this bit of an integer field
+  double scale = 1;                             ///< finite, non-zero. Default 1
+  double offset = 0;                            ///< finite. Default 0
+  int bit = -1;  ///< -1 = whole value; 0..31 = this bit of an integer field
 };
 
 /// Where one identity string lives (2 ASCII characters per register, high byte first).
@@ -116,8 +116,8 @@ std::string decode_string(std::span<const std::uint16_t> regs);
 /// What one poll of the map yields (no transport, no clock).
 struct Measurement {
   SensorStatus status = SensorStatus::kNoTarget;
-  double value_mm = 0;  ///< NaN unless kOk
-  std::uint32_t device_code = 0;  ///< alarm: the raw status/alarm/quality value that flagged it
+  double value_mm = 0;                ///< NaN unless kOk
+  std::uint32_t device_code = 0;      ///< alarm: the raw status/alarm/quality value that flagged it
   std::optional<Timestamp> t_device;  ///< from timestamp_s (+ timestamp_us) when mapped
 };
 

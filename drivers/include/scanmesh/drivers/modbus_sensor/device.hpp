@@ -18,8 +18,8 @@
 #include <vector>
 
 #include "scanmesh/drivers/device_support.hpp"
-#include "scanmesh/drivers/error.hpp"
 #include "scanmesh/drivers/displacement_sensor.hpp"
+#include "scanmesh/drivers/error.hpp"
 #include "scanmesh/drivers/modbus_sensor/codec.hpp"
 #include "scanmesh/drivers/register_bus.hpp"
 

@@ -42,8 +42,7 @@ class ModbusContext {
 /// Recovery: after a request timed out, the next request first reconnects the TCP socket, so a
 /// late reply can never be taken for the answer to a later request.
 std::unique_ptr<RegisterBus> open_modbus_tcp(const std::string& device, const std::string& host,
-                                             int port, int unit,
-                                             std::chrono::milliseconds timeout);
+                                             int port, int unit, std::chrono::milliseconds timeout);
 
 /// Opens a Modbus RTU line on `path` (e.g. /dev/ttyUSB0, or a pty). parity is 'N', 'E' or 'O';
 /// data_bits 5..8; stop_bits 1 or 2. Pseudo-terminals only accept 8N1 (enabling parity on a

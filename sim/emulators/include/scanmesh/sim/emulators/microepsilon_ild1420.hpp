@@ -15,13 +15,13 @@ namespace scanmesh::sim {
 
 /// Settings of the emulated sensor.
 struct Ild1420EmulatorOptions {
-  double measuring_range_mm = 10;   ///< reported by GETINFO and used for the scaling
+  double measuring_range_mm = 10;      ///< reported by GETINFO and used for the scaling
   bool report_measuring_range = true;  ///< false: GETINFO has no "Measuring range" line
   /// Words of an output block: 'd' distance, 'c' 18-bit counter, 'l'/'h' timestamp low/high
   /// word (10 µs ticks). Default "d". Must match the driver's BlockLayout.
   std::string layout = "d";
-  int blocks_per_tick = 1;          ///< blocks per 1 ms tick (1 = 1 kHz)
-  bool streaming = true;            ///< output on at power-up (OUTPUT RS422)
+  int blocks_per_tick = 1;  ///< blocks per 1 ms tick (1 = 1 kHz)
+  bool streaming = true;    ///< output on at power-up (OUTPUT RS422)
   std::string name = "ILD1420-10";
   std::string serial = "1234567";
   std::string article = "4120123";

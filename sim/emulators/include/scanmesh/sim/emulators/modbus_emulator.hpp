@@ -37,9 +37,9 @@ struct ModbusRequest {
 };
 
 /// Writes one measurement into the register tables (input, holding).
-using ModbusImageWriter = std::function<void(std::span<std::uint16_t> input,
-                                             std::span<std::uint16_t> holding,
-                                             const drivers::SensorSample& sample)>;
+using ModbusImageWriter =
+    std::function<void(std::span<std::uint16_t> input, std::span<std::uint16_t> holding,
+                       const drivers::SensorSample& sample)>;
 
 /// How the measurement registers are refreshed: on every read request (FC03/FC04) whose range
 /// overlaps [first, first + count) of the table `function` reads (0 = either table), the
@@ -47,7 +47,7 @@ using ModbusImageWriter = std::function<void(std::span<std::uint16_t> input,
 /// Reads elsewhere (identity strings) take no measurement. An empty write = a static image.
 struct ModbusImage {
   ModbusImageWriter write;
-  int function = 0;            ///< 3 (holding), 4 (input) or 0 (both)
+  int function = 0;  ///< 3 (holding), 4 (input) or 0 (both)
   std::uint16_t first = 0;
   std::uint32_t count = 65536;
 };
