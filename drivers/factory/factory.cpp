@@ -53,7 +53,8 @@ std::unique_ptr<DisplacementSensor> make_panasonic_hlg1(const SensorConfig& c) {
 std::unique_ptr<DisplacementSensor> make_microepsilon_ild1420(const SensorConfig& c) {
   microepsilon_ild1420::Options o;
   o.measuring_range_mm = c.measuring_range_mm;
-  return std::make_unique<microepsilon_ild1420::Device>(c.options, serial_factory(c, 921600), o);
+  return std::make_unique<microepsilon_ild1420::Device>(
+      c.options, serial_factory(c, microepsilon_ild1420::kDefaultBaud), o);
 }
 
 std::unique_ptr<DisplacementSensor> make_modbus_sensor(const SensorConfig& c) {
@@ -102,7 +103,7 @@ const Registration kDrivers[] = {
     {{"panasonic-hlg1", "Panasonic HL-G1", "serial RS-422/RS-485", panasonic_hlg1::kDefaultBaud},
      &make_panasonic_hlg1},
     {{"microepsilon-ild1420", "Micro-Epsilon optoNCDT ILD1420 (1320/1220)", "serial RS422",
-      921600},
+      microepsilon_ild1420::kDefaultBaud},
      &make_microepsilon_ild1420},
     {{"modbus-sensor", "Modbus register-mapped sensors (Baumer OM20/OM30 profile built in)",
       "Modbus RTU or TCP", 19200},
