@@ -250,14 +250,14 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
           const double d2 = dx * dx + dy * dy + dz * dz;
           ds[u] = d2;
           picked[np] = {d2, cand[u], static_cast<std::uint32_t>(u)};
-          np += (d2 <= thr) & (cand[u] != i) ? 1 : 0;
+          np += ((d2 <= thr) & (cand[u] != i)) ? 1 : 0;
         }
         for (int widen = 0; np < k; ++widen) {  // four times the filter, then everything
           thr = widen == 0 ? 4 * thr : std::numeric_limits<double>::infinity();
           np = 0;
           for (std::size_t u = 0; u < cnt; ++u) {
             picked[np] = {ds[u], cand[u], static_cast<std::uint32_t>(u)};
-            np += (ds[u] <= thr) & (cand[u] != i) ? 1 : 0;
+            np += ((ds[u] <= thr) & (cand[u] != i)) ? 1 : 0;
           }
         }
         if (thr < std::numeric_limits<double>::infinity() && thr > 0) {

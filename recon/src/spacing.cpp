@@ -169,7 +169,7 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
           const Vec3 d = points[j] - p;
           const double d2 = d.squaredNorm();
           near[cnt] = {d2, j, d};
-          cnt += (d2 <= r2) & (j != i) ? 1 : 0;
+          cnt += ((d2 <= r2) & (j != i)) ? 1 : 0;
         }
       });
       if (cnt >= kNeighbours || r >= reach) break;
