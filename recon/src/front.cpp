@@ -247,7 +247,10 @@ class Builder {
   void add_triangle(std::uint32_t eid, std::uint32_t p);
   void grow();
   void fill_small_loops();
-  std::size_t repair_fans();
+  /// Keeps the largest fan of every multi-fan vertex. thorough: examine every vertex, not only
+  /// those the front shows with two open sectors (a vertex where two closed fans touch has no
+  /// front edge at all).
+  std::size_t repair_fans(bool thorough = false);
   void orient_components();
   void rebuild_front();
   void split_flat_triangle_holes();
@@ -684,12 +687,12 @@ void Builder::fill_small_loops() {
   }
 }
 
-std::size_t Builder::repair_fans() {
+std::size_t Builder::repair_fans(bool thorough) {
   std::size_t total = 0;
   // A vertex whose triangles form several fans is non-manifold: keep its largest fan. While the
   // front matches the mesh, such vertices are exactly those with more than one open sector
   // (triangles are only ever added in a vertex's open sector), so most calls end here.
-  bool any = false;
+  bool any = thorough;
   for (std::uint32_t v = 0; v < head_out_.size() && !any; ++v)
     any = head_out_[v] != kNone && edges_[head_out_[v]].next_out != kNone;
   if (!any) return 0;
@@ -922,13 +925,17 @@ FrontResult Builder::run() {
     grow();
     fill_small_loops();
   }
-  // The last word: every vertex keeps a single fan; gaps this opens are closed by ear clipping
-  // only, which cannot create new multi-fan vertices.
-  for (int round = 0; round < 3 && repair_fans() > 0; ++round) {
+  // The last word: every vertex keeps a single fan (checked at every vertex: two closed fans
+  // touching at one vertex leave no trace in the front); gaps this opens are closed by ear
+  // clipping only.
+  for (int round = 0; round < 3 && repair_fans(true) > 0; ++round) {
     rebuild_front();
     fill_small_loops();
   }
   split_flat_triangle_holes();
+  // Guarantee, whatever the rounds above left: no multi-fan vertex in the output (a pinch that
+  // survived them becomes a small boundary loop instead).
+  if (repair_fans(true) > 0) rebuild_front();
   orient_components();
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);
