@@ -1,7 +1,6 @@
 // Codec throughput of the KEYENCE LK-G protocol: the timed auto-output stream ("T1,+01.2345"
 // CR), the fastest way the controller delivers values.
 // SPDX-License-Identifier: MIT
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -30,23 +29,12 @@ CodecFigures bench_keyence_lkg() {
   const int rounds = 8;
   std::uint64_t replies = 0;
   double sum = 0;
-  const auto t0 = std::chrono::steady_clock::now();
-  for (int r = 0; r < rounds; ++r) {
-    lkg::Decoder decoder;
-    // Fed in serial-port-sized chunks.
-    for (std::size_t pos = 0; pos < stream.size(); pos += 256) {
-      decoder.feed(
-          std::string_view(stream).substr(pos, 256),
-          [&](const lkg::Reply& reply) {
-            ++replies;
-            if (reply.readings[0].status == drivers::SensorStatus::kOk)
-              sum += reply.readings[0].value;
-          },
-          [](const char*) {});
-    }
-  }
+  // Fed in serial-port-sized chunks.
   const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      time_decoder<lkg::Decoder>(stream, rounds, 256, [&](const lkg::Reply& reply) {
+        ++replies;
+        if (reply.readings[0].status == drivers::SensorStatus::kOk) sum += reply.readings[0].value;
+      });
   do_not_optimize(sum);
   CodecFigures f;
   f.protocol = "keyence-lkg";

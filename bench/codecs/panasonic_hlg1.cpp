@@ -1,7 +1,6 @@
 // Codec throughput of the Panasonic HL-G1 protocol: RMD replies with BCC ("%01$RMD+0025000"
 // BCC CR), BCC check included.
 // SPDX-License-Identifier: MIT
-#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -33,21 +32,12 @@ CodecFigures bench_panasonic_hlg1() {
   const int rounds = 8;
   std::uint64_t replies = 0;
   double sum = 0;
-  const auto t0 = std::chrono::steady_clock::now();
-  for (int r = 0; r < rounds; ++r) {
-    hlg1::Decoder decoder;
-    for (std::size_t pos = 0; pos < stream.size(); pos += 256) {
-      decoder.feed(
-          std::string_view(stream).substr(pos, 256),
-          [&](const hlg1::Reply& reply) {
-            ++replies;
-            sum += reply.value_mm();
-          },
-          [](const char*) {});
-    }
-  }
+  // Fed in serial-port-sized chunks.
   const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      time_decoder<hlg1::Decoder>(stream, rounds, 256, [&](const hlg1::Reply& reply) {
+        ++replies;
+        sum += reply.value_mm();
+      });
   do_not_optimize(sum);
   CodecFigures f;
   f.protocol = "panasonic-hlg1";

@@ -1,47 +1,36 @@
 // Tests of the KEYENCE IL / DL-RS1A driver: codec tables, and the device against its pty
 // emulator over the real serial transport, with every injected fault.
 // SPDX-License-Identifier: MIT
-#include <unistd.h>
-
-#include <atomic>
 #include <catch2/catch.hpp>
 #include <chrono>
 #include <cmath>
-#include <filesystem>
 #include <limits>
-#include <mutex>
-#include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/drivers/error.hpp"
 #include "scanmesh/drivers/keyence_il/codec.hpp"
 #include "scanmesh/drivers/keyence_il/device.hpp"
-#include "scanmesh/drivers/transports/serial_stream.hpp"
 #include "scanmesh/sim/emulators/keyence_il.hpp"
+#include "support/codec_table.hpp"
+#include "support/sensor_harness.hpp"
 
 namespace il = scanmesh::drivers::keyence_il;
 using scanmesh::drivers::DeviceError;
 using scanmesh::drivers::DeviceErrorKind;
 using scanmesh::drivers::DeviceState;
-using scanmesh::drivers::SensorCallbacks;
 using scanmesh::drivers::SensorOptions;
 using scanmesh::drivers::SensorSample;
 using scanmesh::drivers::SensorStatus;
+using scanmesh::test::SensorCollector;
+using scanmesh::test::TempDir;
+using scanmesh::test::wait_until;
 using namespace std::chrono_literals;
 
 namespace {
 
 // ---- codec helpers ----
-
-std::string describe_reading(const il::Reading& r) {
-  if (r.status != SensorStatus::kOk) return std::string(scanmesh::drivers::to_string(r.status));
-  std::ostringstream o;
-  o << "ok:" << r.value;
-  return o.str();
-}
 
 std::string describe(const il::Reply& r) {
   std::string s;
@@ -82,121 +71,17 @@ std::string describe(const il::Reply& r) {
       s += ']';
     }
     s += ' ';
-    s += describe_reading(r.readings[i]);
+    s += scanmesh::test::describe_reading(r.readings[i]);
   }
   return s;
 }
 
-struct Decoded {
-  std::vector<std::string> replies;
-  std::vector<std::string> malformed;
-};
-
-Decoded decode_chunks(const std::vector<std::string>& chunks) {
-  il::Decoder decoder;
-  Decoded out;
-  for (const auto& c : chunks)
-    decoder.feed(
-        std::string_view(c), [&](const il::Reply& r) { out.replies.push_back(describe(r)); },
-        [&](const char* why) { out.malformed.emplace_back(why); });
-  return out;
-}
-
-Decoded decode(const std::string& bytes) { return decode_chunks({bytes}); }
-
 // ---- device helpers ----
 
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = std::filesystem::temp_directory_path() /
-            ("scanmesh-il-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  std::filesystem::path path_;
-};
-
-struct Collector {
-  std::mutex mutex;
-  std::vector<SensorSample> samples;
-  std::vector<std::pair<DeviceState, std::string>> states;
-
-  SensorCallbacks callbacks() {
-    return {[this](const SensorSample& s) {
-              std::lock_guard lock(mutex);
-              samples.push_back(s);
-            },
-            [this](DeviceState st, const std::string& reason) {
-              std::lock_guard lock(mutex);
-              states.emplace_back(st, reason);
-            }};
-  }
-  std::size_t count() {
-    std::lock_guard lock(mutex);
-    return samples.size();
-  }
-  std::vector<SensorSample> copy() {
-    std::lock_guard lock(mutex);
-    return samples;
-  }
-  bool saw(DeviceState st, const std::string& needle = "") {
-    std::lock_guard lock(mutex);
-    for (const auto& [s, reason] : states)
-      if (s == st && reason.find(needle) != std::string::npos) return true;
-    return false;
-  }
-  std::string state_log() {
-    std::lock_guard lock(mutex);
-    std::string out;
-    for (const auto& [s, reason] : states)
-      out += std::string(scanmesh::drivers::to_string(s)) + ": " + reason + "\n";
-    return out;
-  }
-};
-
-template <class Pred>
-bool wait_until(Pred pred, std::chrono::milliseconds limit = 4000ms) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (pred()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return pred();
-}
-
-SensorOptions fast_options() {
-  SensorOptions o;
-  o.name = "il0";
-  o.poll_interval = 2ms;
-  o.timeout = 100ms;
-  o.timeouts_until_lost = 3;
-  o.backoff_initial = 20ms;
-  o.backoff_max = 200ms;
-  return o;
-}
+SensorOptions fast_options() { return scanmesh::test::fast_sensor_options("il0"); }
 
 scanmesh::drivers::ByteStreamFactory serial_factory(const std::string& link) {
-  return [link] { return scanmesh::drivers::open_serial_stream("il0", {link, il::kDefaultBaud}); };
-}
-
-bool all_in(const std::vector<SensorSample>& samples, std::size_t from,
-            const std::vector<double>& allowed) {
-  for (std::size_t i = from; i < samples.size(); ++i) {
-    if (samples[i].status != SensorStatus::kOk) return false;
-    bool found = false;
-    for (double a : allowed) found = found || std::fabs(samples[i].value_mm - a) < 1e-9;
-    if (!found) return false;
-  }
-  return true;
+  return scanmesh::test::pty_serial_factory("il0", link, il::kDefaultBaud);
 }
 
 }  // namespace
@@ -204,15 +89,9 @@ bool all_in(const std::vector<SensorSample>& samples, std::size_t from,
 // ======================= codec =======================
 
 TEST_CASE("keyence_il codec table", "[drivers][keyence_il]") {
-  struct Case {
-    const char* legend;
-    std::string input;
-    std::vector<std::string> replies;
-    std::size_t malformed;
-  };
   std::string seventeen = "M0";
   for (int i = 0; i < 17; ++i) seventeen += ",+01.000";
-  const std::vector<Case> cases = {
+  const std::vector<scanmesh::test::CodecCase> cases = {
       {"M0 one amplifier", "M0,+12.345\r\n", {"M0 ok:12.345"}, 0},
       {"M0 three head formats",
        "M0,+12.345,-123.45,+1234.5\r\n",
@@ -256,12 +135,7 @@ TEST_CASE("keyence_il codec table", "[drivers][keyence_il]") {
       {"unknown header", "QQ,1\r\n", {}, 1},
       {"over-long line", std::string(300, '1') + "\r\nM0,+12.345\r\n", {"M0 ok:12.345"}, 1},
   };
-  for (const auto& c : cases) {
-    INFO(c.legend);
-    const Decoded d = decode(c.input);
-    CHECK(d.replies == c.replies);
-    CHECK(d.malformed.size() == c.malformed);
-  }
+  scanmesh::test::check_codec_table<il::Decoder>(cases, describe);
   CHECK(il::M0::encode() == "M0\r\n");
   CHECK(il::Ms::encode() == "MS\r\n");
   CHECK(il::Sr::encode(1, 37) == "SR,01,037\r\n");
@@ -274,18 +148,7 @@ TEST_CASE("keyence_il codec table", "[drivers][keyence_il]") {
 
 TEST_CASE("keyence_il codec: split at every byte boundary", "[drivers][keyence_il]") {
   const std::string stream = "M0,+12.345,-123.45\r\nER,M0,00\r\nMS,01,+FFFFFF\r\nSR,00,037,+1\r\n";
-  const Decoded whole = decode(stream);
-  REQUIRE(whole.replies.size() == 4);
-  REQUIRE(whole.malformed.empty());
-  for (std::size_t a = 0; a <= stream.size(); ++a) {
-    INFO("split at " << a);
-    const Decoded d = decode_chunks({stream.substr(0, a), stream.substr(a)});
-    CHECK(d.replies == whole.replies);
-    CHECK(d.malformed.empty());
-  }
-  std::vector<std::string> bytes;
-  for (char c : stream) bytes.emplace_back(1, c);
-  CHECK(decode_chunks(bytes).replies == whole.replies);
+  scanmesh::test::check_split_at_every_byte<il::Decoder>(stream, 4, describe);
 }
 
 // ======================= device against the emulator =======================
@@ -293,7 +156,7 @@ TEST_CASE("keyence_il codec: split at every byte boundary", "[drivers][keyence_i
 TEST_CASE("keyence_il device: scripted values, amplifier choice, wire bytes",
           "[drivers][keyence_il]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   const double inf = std::numeric_limits<double>::infinity();
   const std::vector<double> script = {1.234, -0.5, std::nan(""), inf, 7.0};
   scanmesh::sim::KeyenceIlEmulator emulator(link, scanmesh::sim::scripted_values(script),
@@ -307,13 +170,10 @@ TEST_CASE("keyence_il device: scripted values, amplifier choice, wire bytes",
   CHECK(device.identify().model == "IL (DL-RS1A)");
   CHECK(emulator.received() == "M0\r\n");
 
-  Collector collector;
+  SensorCollector collector;
   device.start(collector.callbacks());
-  REQUIRE(wait_until([&] { return collector.count() >= 11; }));
-  device.stop();
-  const std::size_t after_stop = collector.count();
-  std::this_thread::sleep_for(30ms);
-  CHECK(collector.count() == after_stop);
+  REQUIRE(collector.wait_for(11));
+  scanmesh::test::stop_and_check_quiet(device, collector);
 
   const auto samples = collector.copy();
   for (std::size_t k = 0; k < samples.size(); ++k) {
@@ -340,7 +200,7 @@ TEST_CASE("keyence_il device: scripted values, amplifier choice, wire bytes",
 
 TEST_CASE("keyence_il device: open errors and options", "[drivers][keyence_il]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   scanmesh::sim::KeyenceIlEmulator emulator(link, scanmesh::sim::scripted_values({1.0}),
                                             {.amplifiers = 2, .decimals = 2});
   emulator.start();
@@ -365,9 +225,9 @@ TEST_CASE("keyence_il device: open errors and options", "[drivers][keyence_il]")
   {
     il::Device device(fast_options(), serial_factory(link), {.value_scale = 0.001});
     device.open();
-    Collector collector;
+    SensorCollector collector;
     device.start(collector.callbacks());
-    REQUIRE(wait_until([&] { return collector.count() >= 2; }));
+    REQUIRE(collector.wait_for(2));
     device.stop();
     for (const auto& s : collector.copy()) CHECK(s.value_mm == Approx(0.001));
   }
@@ -380,71 +240,13 @@ TEST_CASE("keyence_il device: open errors and options", "[drivers][keyence_il]")
 TEST_CASE("keyence_il device: injected faults are reported and recovered from",
           "[drivers][keyence_il]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   const std::vector<double> script = {1.0, 2.0, 3.0, 4.5};
   scanmesh::sim::KeyenceIlEmulator emulator(link, scanmesh::sim::scripted_values(script));
   emulator.start();
   il::Device device(fast_options(), serial_factory(link));
   device.open();
-  Collector collector;
-  device.start(collector.callbacks());
-  REQUIRE(wait_until([&] { return collector.count() >= 3; }));
-
-  auto resumes = [&](std::size_t more) {
-    const std::size_t n = collector.count();
-    return wait_until([&] { return collector.count() >= n + more; });
-  };
-
-  SECTION("garbage before every reply") {
-    emulator.set_faults({.garbage_before_reply = true});
-    const auto before = device.stats().malformed;
-    REQUIRE(wait_until([&] { return device.stats().malformed >= before + 3; }));
-    CHECK(resumes(3));
-  }
-  SECTION("every byte written alone") {
-    emulator.set_faults({.split_every_byte = true});
-    CHECK(resumes(5));
-    CHECK(device.stats().malformed == 0);
-  }
-  SECTION("error replies") {
-    emulator.set_faults({.error_reply = true});
-    REQUIRE(wait_until([&] { return device.stats().error_replies >= 3; }));
-    const std::size_t n = collector.count();
-    std::this_thread::sleep_for(50ms);
-    CHECK(collector.count() <= n + 1);
-    emulator.set_faults({});
-    CHECK(resumes(3));
-  }
-  SECTION("replies later than the timeout") {
-    emulator.set_faults({.reply_delay = 250ms});
-    REQUIRE(wait_until([&] { return device.stats().timeouts >= 2; }));
-    emulator.set_faults({});
-    CHECK(resumes(3));
-  }
-  SECTION("silent unit: lost, then back") {
-    emulator.set_faults({.silent = true});
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kLost; }));
-    CHECK(device.stats().timeouts >= 3);
-    CHECK(collector.saw(DeviceState::kLost, "il0"));
-    CHECK(collector.saw(DeviceState::kLost, "M0: no reply within 100 ms"));
-    emulator.set_faults({});
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kAcquiring; }));
-    CHECK(device.stats().reconnects >= 1);
-    CHECK(resumes(3));
-  }
-  SECTION("port vanishes, then reappears") {
-    emulator.vanish();
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kLost; }));
-    CHECK(collector.saw(DeviceState::kLost, "il0"));
-    std::this_thread::sleep_for(100ms);
-    emulator.reappear();
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kAcquiring; }));
-    CHECK(device.stats().reconnects >= 1);
-    CHECK(resumes(3));
-  }
-  device.stop();
-  INFO(collector.state_log());
-  const auto samples = collector.copy();
-  CHECK(all_in(samples, 0, script));
-  for (std::size_t k = 1; k < samples.size(); ++k) CHECK(samples[k].seq == samples[k - 1].seq + 1);
+  scanmesh::test::check_fault_recovery(
+      emulator, device, {"il0", "silent unit: lost, then back", "M0: no reply within 100 ms"},
+      script);
 }

@@ -1,18 +1,11 @@
 // Tests of the KEYENCE LK-G driver: codec tables, and the device against its pty emulator over
 // the real serial transport, with every injected fault.
 // SPDX-License-Identifier: MIT
-#include <unistd.h>
-
-#include <atomic>
 #include <catch2/catch.hpp>
 #include <chrono>
 #include <cmath>
-#include <filesystem>
 #include <limits>
-#include <mutex>
-#include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "scanmesh/common/error.hpp"
@@ -21,27 +14,24 @@
 #include "scanmesh/drivers/keyence_lkg/device.hpp"
 #include "scanmesh/drivers/transports/serial_stream.hpp"
 #include "scanmesh/sim/emulators/keyence_lkg.hpp"
+#include "support/codec_table.hpp"
+#include "support/sensor_harness.hpp"
 
 namespace lkg = scanmesh::drivers::keyence_lkg;
 using scanmesh::drivers::DeviceError;
 using scanmesh::drivers::DeviceErrorKind;
 using scanmesh::drivers::DeviceState;
-using scanmesh::drivers::SensorCallbacks;
 using scanmesh::drivers::SensorOptions;
 using scanmesh::drivers::SensorSample;
 using scanmesh::drivers::SensorStatus;
+using scanmesh::test::SensorCollector;
+using scanmesh::test::TempDir;
+using scanmesh::test::wait_until;
 using namespace std::chrono_literals;
 
 namespace {
 
 // ---- codec helpers ----
-
-std::string describe_reading(const lkg::Reading& r) {
-  if (r.status != SensorStatus::kOk) return std::string(scanmesh::drivers::to_string(r.status));
-  std::ostringstream o;
-  o << "ok:" << r.value;
-  return o.str();
-}
 
 std::string describe(const lkg::Reply& r) {
   std::string s;
@@ -74,123 +64,17 @@ std::string describe(const lkg::Reply& r) {
       s += ']';
     }
     s += ' ';
-    s += describe_reading(r.readings[i]);
+    s += scanmesh::test::describe_reading(r.readings[i]);
   }
   return s;
 }
 
-struct Decoded {
-  std::vector<std::string> replies;
-  std::vector<std::string> malformed;
-};
-
-Decoded decode_chunks(const std::vector<std::string>& chunks) {
-  lkg::Decoder decoder;
-  Decoded out;
-  for (const auto& c : chunks)
-    decoder.feed(
-        std::string_view(c), [&](const lkg::Reply& r) { out.replies.push_back(describe(r)); },
-        [&](const char* why) { out.malformed.emplace_back(why); });
-  return out;
-}
-
-Decoded decode(const std::string& bytes) { return decode_chunks({bytes}); }
-
 // ---- device helpers ----
 
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = std::filesystem::temp_directory_path() /
-            ("scanmesh-lkg-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  std::filesystem::path path_;
-};
-
-struct Collector {
-  std::mutex mutex;
-  std::vector<SensorSample> samples;
-  std::vector<std::pair<DeviceState, std::string>> states;
-
-  SensorCallbacks callbacks() {
-    return {[this](const SensorSample& s) {
-              std::lock_guard lock(mutex);
-              samples.push_back(s);
-            },
-            [this](DeviceState st, const std::string& reason) {
-              std::lock_guard lock(mutex);
-              states.emplace_back(st, reason);
-            }};
-  }
-  std::size_t count() {
-    std::lock_guard lock(mutex);
-    return samples.size();
-  }
-  std::vector<SensorSample> copy() {
-    std::lock_guard lock(mutex);
-    return samples;
-  }
-  bool saw(DeviceState st, const std::string& needle = "") {
-    std::lock_guard lock(mutex);
-    for (const auto& [s, reason] : states)
-      if (s == st && reason.find(needle) != std::string::npos) return true;
-    return false;
-  }
-  std::string state_log() {
-    std::lock_guard lock(mutex);
-    std::string out;
-    for (const auto& [s, reason] : states)
-      out += std::string(scanmesh::drivers::to_string(s)) + ": " + reason + "\n";
-    return out;
-  }
-};
-
-template <class Pred>
-bool wait_until(Pred pred, std::chrono::milliseconds limit = 4000ms) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (pred()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return pred();
-}
-
-SensorOptions fast_options() {
-  SensorOptions o;
-  o.name = "lkg0";
-  o.poll_interval = 2ms;
-  o.timeout = 100ms;
-  o.timeouts_until_lost = 3;
-  o.backoff_initial = 20ms;
-  o.backoff_max = 200ms;
-  return o;
-}
+SensorOptions fast_options() { return scanmesh::test::fast_sensor_options("lkg0"); }
 
 scanmesh::drivers::ByteStreamFactory serial_factory(const std::string& link) {
-  return [link] {
-    return scanmesh::drivers::open_serial_stream("lkg0", {link, lkg::kDefaultBaud});
-  };
-}
-
-bool all_in(const std::vector<SensorSample>& samples, std::size_t from,
-            const std::vector<double>& allowed) {
-  for (std::size_t i = from; i < samples.size(); ++i) {
-    if (samples[i].status != SensorStatus::kOk) return false;
-    bool found = false;
-    for (double a : allowed) found = found || std::fabs(samples[i].value_mm - a) < 1e-9;
-    if (!found) return false;
-  }
-  return true;
+  return scanmesh::test::pty_serial_factory("lkg0", link, lkg::kDefaultBaud);
 }
 
 }  // namespace
@@ -198,13 +82,7 @@ bool all_in(const std::vector<SensorSample>& samples, std::size_t from,
 // ======================= codec =======================
 
 TEST_CASE("keyence_lkg codec table", "[drivers][keyence_lkg]") {
-  struct Case {
-    const char* legend;
-    std::string input;
-    std::vector<std::string> replies;
-    std::size_t malformed;
-  };
-  const std::vector<Case> cases = {
+  const std::vector<scanmesh::test::CodecCase> cases = {
       {"M0 two values", "M0,+01.2345,-00.0120\r", {"M0 ok:1.2345 ok:-0.012"}, 0},
       {"M0 lower-case echo", "m0,+01.2345,-00.0120\r", {"M0 ok:1.2345 ok:-0.012"}, 0},
       {"M0 other decimal point", "M0,+1234.56,-0001.20\r", {"M0 ok:1234.56 ok:-1.2"}, 0},
@@ -250,28 +128,12 @@ TEST_CASE("keyence_lkg codec table", "[drivers][keyence_lkg]") {
       {"over-long line", std::string(100, 'A') + "\rQ0\r", {"Q0"}, 1},
       {"blank lines only", "\r\n\r\n", {}, 0},
   };
-  for (const auto& c : cases) {
-    INFO(c.legend);
-    const Decoded d = decode(c.input);
-    CHECK(d.replies == c.replies);
-    CHECK(d.malformed.size() == c.malformed);
-  }
+  scanmesh::test::check_codec_table<lkg::Decoder>(cases, describe);
 }
 
 TEST_CASE("keyence_lkg codec: split at every byte boundary", "[drivers][keyence_lkg]") {
   const std::string stream = "M0,+01.2345,-00.0120\rER,M0,01\rT2,+FFFFFFF\rMS,00,--------\r";
-  const Decoded whole = decode(stream);
-  REQUIRE(whole.replies.size() == 4);
-  REQUIRE(whole.malformed.empty());
-  for (std::size_t a = 0; a <= stream.size(); ++a) {
-    INFO("split at " << a);
-    const Decoded d = decode_chunks({stream.substr(0, a), stream.substr(a)});
-    CHECK(d.replies == whole.replies);
-    CHECK(d.malformed.empty());
-  }
-  std::vector<std::string> bytes;
-  for (char c : stream) bytes.emplace_back(1, c);
-  CHECK(decode_chunks(bytes).replies == whole.replies);
+  scanmesh::test::check_split_at_every_byte<lkg::Decoder>(stream, 4, describe);
 }
 
 TEST_CASE("keyence_lkg codec: error texts and value formatting", "[drivers][keyence_lkg]") {
@@ -311,7 +173,7 @@ TEST_CASE("keyence_lkg codec: error texts and value formatting", "[drivers][keye
 TEST_CASE("keyence_lkg device: scripted values, sequence numbers, wire bytes",
           "[drivers][keyence_lkg]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   const double inf = std::numeric_limits<double>::infinity();
   const std::vector<double> script = {1.2345, -0.012, std::nan(""), inf, -inf, 2.5};
   scanmesh::sim::KeyenceLkgEmulator emulator(link, scanmesh::sim::scripted_values(script));
@@ -327,13 +189,10 @@ TEST_CASE("keyence_lkg device: scripted values, sequence numbers, wire bytes",
   CHECK_FALSE(device.capabilities().streaming);
   CHECK(emulator.received() == "M0\r");  // identification: one M0
 
-  Collector collector;
+  SensorCollector collector;
   device.start(collector.callbacks());
-  REQUIRE(wait_until([&] { return collector.count() >= 13; }));
-  device.stop();
-  const std::size_t after_stop = collector.count();
-  std::this_thread::sleep_for(30ms);
-  CHECK(collector.count() == after_stop);  // no callback after stop()
+  REQUIRE(collector.wait_for(13));
+  scanmesh::test::stop_and_check_quiet(device, collector);
 
   const auto samples = collector.copy();
   // open() took measurement 0; sample k is measurement k + 1.
@@ -371,15 +230,15 @@ TEST_CASE("keyence_lkg device: scripted values, sequence numbers, wire bytes",
 
 TEST_CASE("keyence_lkg device: OUT2 and value_scale", "[drivers][keyence_lkg]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   scanmesh::sim::KeyenceLkgEmulator emulator(link, scanmesh::sim::scripted_values({1234.5}),
                                              {.decimals = 1});
   emulator.start();
   lkg::Device device(fast_options(), serial_factory(link), {.out = 2, .value_scale = 0.001});
   device.open();
-  Collector collector;
+  SensorCollector collector;
   device.start(collector.callbacks());
-  REQUIRE(wait_until([&] { return collector.count() >= 3; }));
+  REQUIRE(collector.wait_for(3));
   device.stop();
   for (const auto& s : collector.copy()) CHECK(s.value_mm == Approx(1.2345));
   CHECK_THROWS_AS(lkg::Device(fast_options(), serial_factory(link), {.out = 3}),
@@ -391,7 +250,7 @@ TEST_CASE("keyence_lkg device: OUT2 and value_scale", "[drivers][keyence_lkg]") 
 TEST_CASE("keyence_lkg device: open errors name the device and the operation",
           "[drivers][keyence_lkg]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   {
     lkg::Device device(fast_options(), serial_factory(link));
     try {
@@ -440,78 +299,20 @@ TEST_CASE("keyence_lkg device: open errors name the device and the operation",
 TEST_CASE("keyence_lkg device: injected faults are reported and recovered from",
           "[drivers][keyence_lkg]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   const std::vector<double> script = {1.0, 2.0, 3.0, 4.5};
   scanmesh::sim::KeyenceLkgEmulator emulator(link, scanmesh::sim::scripted_values(script));
   emulator.start();
   lkg::Device device(fast_options(), serial_factory(link));
   device.open();
-  Collector collector;
-  device.start(collector.callbacks());
-  REQUIRE(wait_until([&] { return collector.count() >= 3; }));
-
-  auto resumes = [&](std::size_t more) {
-    const std::size_t n = collector.count();
-    return wait_until([&] { return collector.count() >= n + more; });
-  };
-
-  SECTION("garbage before every reply") {
-    emulator.set_faults({.garbage_before_reply = true});
-    const auto before = device.stats().malformed;
-    REQUIRE(wait_until([&] { return device.stats().malformed >= before + 3; }));
-    CHECK(resumes(3));  // the codec resynchronises on the reply header
-  }
-  SECTION("every byte written alone") {
-    emulator.set_faults({.split_every_byte = true});
-    CHECK(resumes(5));
-    CHECK(device.stats().malformed == 0);
-  }
-  SECTION("error replies") {
-    emulator.set_faults({.error_reply = true});
-    REQUIRE(wait_until([&] { return device.stats().error_replies >= 3; }));
-    const std::size_t n = collector.count();
-    std::this_thread::sleep_for(50ms);
-    CHECK(collector.count() <= n + 1);  // at most the reply already in flight
-    emulator.set_faults({});
-    CHECK(resumes(3));
-  }
-  SECTION("replies later than the timeout") {
-    emulator.set_faults({.reply_delay = 250ms});
-    REQUIRE(wait_until([&] { return device.stats().timeouts >= 2; }));
-    emulator.set_faults({});
-    CHECK(resumes(3));
-  }
-  SECTION("silent device: lost, then back") {
-    emulator.set_faults({.silent = true});
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kLost; }));
-    CHECK(device.stats().timeouts >= 3);
-    CHECK(collector.saw(DeviceState::kLost, "lkg0"));
-    CHECK(collector.saw(DeviceState::kLost, "no reply within 100 ms"));
-    emulator.set_faults({});
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kAcquiring; }));
-    CHECK(device.stats().reconnects >= 1);
-    CHECK(resumes(3));
-  }
-  SECTION("port vanishes, then reappears") {
-    emulator.vanish();
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kLost; }));
-    CHECK(collector.saw(DeviceState::kLost, "lkg0"));
-    std::this_thread::sleep_for(100ms);  // a few failed reopenings
-    emulator.reappear();
-    REQUIRE(wait_until([&] { return device.state() == DeviceState::kAcquiring; }));
-    CHECK(device.stats().reconnects >= 1);
-    CHECK(resumes(3));
-  }
-  device.stop();
-  INFO(collector.state_log());
-  const auto samples = collector.copy();
-  CHECK(all_in(samples, 0, script));  // no corrupt sample, ever
-  for (std::size_t k = 1; k < samples.size(); ++k) CHECK(samples[k].seq == samples[k - 1].seq + 1);
+  scanmesh::test::check_fault_recovery(
+      emulator, device, {"lkg0", "silent device: lost, then back", "no reply within 100 ms"},
+      script);
 }
 
 TEST_CASE("keyence_lkg device: auto-output streaming mode", "[drivers][keyence_lkg]") {
   TempDir dir;
-  const std::string link = dir.file("tty");
+  const std::string link = (dir / "tty").string();
   const std::vector<double> script = {0.5, -0.25, std::nan(""), 7.125};
   scanmesh::sim::KeyenceLkgEmulator emulator(
       link, scanmesh::sim::scripted_values(script),
@@ -521,9 +322,9 @@ TEST_CASE("keyence_lkg device: auto-output streaming mode", "[drivers][keyence_l
                      {.acquisition = lkg::Acquisition::kAutoOutput});
   device.open();
   CHECK(device.capabilities().streaming);
-  Collector collector;
+  SensorCollector collector;
   device.start(collector.callbacks());
-  REQUIRE(wait_until([&] { return collector.count() >= 20; }));
+  REQUIRE(collector.wait_for(20));
 
   // The stream stops: timeouts, lost; it comes back: acquiring again.
   emulator.set_auto_output(false);
@@ -532,7 +333,7 @@ TEST_CASE("keyence_lkg device: auto-output streaming mode", "[drivers][keyence_l
   emulator.set_auto_output(true);
   REQUIRE(wait_until([&] { return device.state() == DeviceState::kAcquiring; }));
   const std::size_t n = collector.count();
-  REQUIRE(wait_until([&] { return collector.count() >= n + 10; }));
+  REQUIRE(collector.wait_for(n + 10));
   device.stop();
 
   CHECK(emulator.received().empty());  // streaming: the driver never sends anything

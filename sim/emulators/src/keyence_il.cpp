@@ -60,16 +60,8 @@ std::string KeyenceIlEmulator::answer(std::string_view request) {
 }
 
 std::string KeyenceIlEmulator::on_input(std::string_view bytes) {
-  std::string reply;
-  for (const char c : bytes) {
-    if (c == '\r') {
-      if (!pending_.empty()) reply += answer(pending_);
-      pending_.clear();
-    } else if (c != '\n' && pending_.size() < 64) {
-      pending_.push_back(c);
-    }
-  }
-  return reply;
+  return answer_lines(bytes, pending_,
+                      [this](std::string_view request) { return answer(request); });
 }
 
 }  // namespace scanmesh::sim

@@ -160,6 +160,21 @@ std::string SerialEmulator::received() const {
   return received_;
 }
 
+std::string SerialEmulator::answer_lines(std::string_view bytes, std::string& pending,
+                                         const std::function<std::string(std::string_view)>& answer,
+                                         std::size_t max_line) {
+  std::string reply;
+  for (const char c : bytes) {
+    if (c == '\r') {
+      if (!pending.empty()) reply += answer(pending);
+      pending.clear();
+    } else if (c != '\n' && pending.size() < max_line) {
+      pending.push_back(c);
+    }
+  }
+  return reply;
+}
+
 drivers::SensorSample SerialEmulator::next_value() {
   measurements_.fetch_add(1);
   return values_();

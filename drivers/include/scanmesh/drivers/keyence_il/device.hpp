@@ -20,11 +20,13 @@
 // - No device clock: t_device stays empty.
 #pragma once
 
-#include <memory>
+#include <cstdint>
+#include <span>
 #include <string>
+#include <string_view>
 
 #include "scanmesh/drivers/byte_stream.hpp"
-#include "scanmesh/drivers/device_support.hpp"
+#include "scanmesh/drivers/common/polled_sensor.hpp"
 #include "scanmesh/drivers/displacement_sensor.hpp"
 #include "scanmesh/drivers/keyence_il/codec.hpp"
 
@@ -46,45 +48,24 @@ struct IlOptions {
   double value_scale = 1.0;
 };
 
-class Device final : public DisplacementSensor {
+class Device final : public PolledSerialSensor {
  public:
   Device(SensorOptions options, ByteStreamFactory transport);
   /// Throws ConfigError for an invalid option.
   Device(SensorOptions options, ByteStreamFactory transport, IlOptions il);
   ~Device() override;
 
-  const std::string& name() const override { return options_.name; }
-  void open() override;
-  void close() noexcept override;
-  void start(SensorCallbacks callbacks) override;
-  void stop() noexcept override;
-
-  DeviceIdentity identify() const override { return identity_; }
   SensorCapabilities capabilities() const override;
-  DeviceState state() const override { return state_.get(); }
-  DeviceStats stats() const override { return stats_.snapshot(); }
 
  private:
-  enum class Outcome { kSample, kError, kTimeout };
-  /// One M0 round trip; the sample goes to the callback when emit_sample.
-  Outcome acquire_one(bool emit_sample, std::string& detail);
-  void run(Worker& worker);
-  void lose(const std::string& reason);
-  bool reconnect(Worker& worker, Backoff& backoff);
-  std::string where() const;
+  std::string_view request() const override { return M0::encode(); }
+  std::string operation() const override { return "M0"; }
+  DeviceIdentity device_identity() const override;
+  void feed(std::span<const std::uint8_t> bytes, Timestamp t_host, Exchange& exchange) override;
+  void reset_codec() override { decoder_.reset(); }
 
-  SensorOptions options_;
-  ByteStreamFactory factory_;
   IlOptions il_;
-  DeviceIdentity identity_;
-  std::unique_ptr<ByteStream> transport_;  // used by the worker while running
   Decoder decoder_;
-  SequenceTracker seq_;
-  AtomicStats stats_;
-  StateCell state_;
-  SensorCallbacks callbacks_;
-  Worker worker_;
-  bool running_ = false;
 };
 
 }  // namespace scanmesh::drivers::keyence_il

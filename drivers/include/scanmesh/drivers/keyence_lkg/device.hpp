@@ -20,12 +20,13 @@
 // - No device clock: t_device stays empty.
 #pragma once
 
-#include <memory>
-#include <mutex>
+#include <cstdint>
+#include <span>
 #include <string>
+#include <string_view>
 
 #include "scanmesh/drivers/byte_stream.hpp"
-#include "scanmesh/drivers/device_support.hpp"
+#include "scanmesh/drivers/common/polled_sensor.hpp"
 #include "scanmesh/drivers/displacement_sensor.hpp"
 #include "scanmesh/drivers/keyence_lkg/codec.hpp"
 
@@ -51,48 +52,27 @@ struct LkgOptions {
   double value_scale = 1.0;
 };
 
-class Device final : public DisplacementSensor {
+class Device final : public PolledSerialSensor {
  public:
   Device(SensorOptions options, ByteStreamFactory transport);
   /// Throws ConfigError for an invalid option.
   Device(SensorOptions options, ByteStreamFactory transport, LkgOptions lkg);
   ~Device() override;
 
-  const std::string& name() const override { return options_.name; }
-  void open() override;
-  void close() noexcept override;
-  void start(SensorCallbacks callbacks) override;
-  void stop() noexcept override;
-
-  DeviceIdentity identify() const override { return identity_; }
   SensorCapabilities capabilities() const override;
-  DeviceState state() const override { return state_.get(); }
-  DeviceStats stats() const override { return stats_.snapshot(); }
 
  private:
-  enum class Outcome { kSample, kError, kTimeout };
-  /// Poll mode: one M0 round trip. Auto mode: reads until at least one record of our OUT
-  /// arrived. Samples go to the callback when emit_samples; detail explains a non-sample.
-  Outcome acquire_one(bool emit_samples, std::string& detail);
-  void emit(SensorSample& sample);
-  void run(Worker& worker);
-  void lose(const std::string& reason);
-  bool reconnect(Worker& worker, Backoff& backoff);
+  /// Poll mode: M0. Auto mode: nothing (an exchange reads until at least one record of our OUT
+  /// arrived).
+  std::string_view request() const override;
+  std::string operation() const override;
+  DeviceIdentity device_identity() const override;
+  void feed(std::span<const std::uint8_t> bytes, Timestamp t_host, Exchange& exchange) override;
+  void reset_codec() override { decoder_.reset(); }
   SensorSample to_sample(const Reading& reading, Timestamp t_host) const;
-  std::string where() const;
 
-  SensorOptions options_;
-  ByteStreamFactory factory_;
   LkgOptions lkg_;
-  DeviceIdentity identity_;
-  std::unique_ptr<ByteStream> transport_;  // used by the worker while running
   Decoder decoder_;
-  SequenceTracker seq_;
-  AtomicStats stats_;
-  StateCell state_;
-  SensorCallbacks callbacks_;
-  Worker worker_;
-  bool running_ = false;
 };
 
 }  // namespace scanmesh::drivers::keyence_lkg

@@ -96,6 +96,13 @@ class SerialEmulator {
   virtual std::chrono::microseconds tick_interval() const { return std::chrono::microseconds(0); }
   /// Next measurement from the value source (counts measurements()).
   drivers::SensorSample next_value();
+  /// For CR-terminated ASCII request protocols, from on_input(): appends bytes to `pending` (the
+  /// subclass's partial request, emulator thread only) and calls answer(request) for every
+  /// complete non-empty request, without its CR; LF is dropped and a request is cut at max_line
+  /// bytes. Returns the answers concatenated.
+  static std::string answer_lines(std::string_view bytes, std::string& pending,
+                                  const std::function<std::string(std::string_view)>& answer,
+                                  std::size_t max_line = 64);
 
  private:
   void run(std::stop_token stop);
