@@ -24,20 +24,23 @@ constexpr std::uint32_t kInterior = 0xfffffffeu;  // edge-map value: edge of two
 constexpr double kPi = std::numbers::pi;
 
 /// Undirected edge -> front edge id (when the edge is on the front) or kInterior.
+/// Open addressing with linear probing; the table is sized to the expected number of edges at
+/// a load of at most 0.8 (no power-of-two rounding, which cost up to twice the memory: it is
+/// the front's largest structure, 12 bytes per slot).
 class EdgeMap {
  public:
-  explicit EdgeMap(std::size_t expected) { rehash(std::bit_ceil(std::max<std::size_t>(64, expected * 2))); }
+  explicit EdgeMap(std::size_t expected) { rehash(capacity_for(expected)); }
   std::uint32_t* find(std::uint32_t u, std::uint32_t v) {
     const std::uint64_t k = key(u, v);
     std::size_t h = hash(k);
     while (vals_[h] != kNone) {
       if (keys_[h] == k) return &vals_[h];
-      h = (h + 1) & mask_;
+      if (++h == cap_) h = 0;
     }
     return nullptr;
   }
   void insert(std::uint32_t u, std::uint32_t v, std::uint32_t val) {
-    if ((size_ + 1) * 10 > keys_.size() * 7) rehash(keys_.size() * 2);
+    if ((size_ + 1) * 5 > cap_ * 4) rehash(capacity_for(cap_ * 3 / 2));
     const std::uint64_t k = key(u, v);
     std::size_t h = hash(k);
     while (vals_[h] != kNone) {
@@ -45,7 +48,7 @@ class EdgeMap {
         vals_[h] = val;
         return;
       }
-      h = (h + 1) & mask_;
+      if (++h == cap_) h = 0;
     }
     keys_[h] = k;
     vals_[h] = val;
@@ -53,31 +56,36 @@ class EdgeMap {
   }
 
  private:
+  static std::size_t capacity_for(std::size_t expected) {
+    return std::max<std::size_t>(64, expected + expected / 4 + 1);
+  }
   static std::uint64_t key(std::uint32_t u, std::uint32_t v) {
     return u < v ? (std::uint64_t{u} << 32) | v : (std::uint64_t{v} << 32) | u;
   }
+  /// Fibonacci hashing mapped onto [0, cap) by a multiply-high (any capacity, no modulo).
   [[nodiscard]] std::size_t hash(std::uint64_t k) const {
-    return static_cast<std::size_t>((k * 0x9E3779B97F4A7C15ull) >> shift_);
+    __extension__ using U128 = unsigned __int128;  // GCC/Clang; __extension__: -Wpedantic
+    const U128 m = static_cast<U128>(k * 0x9E3779B97F4A7C15ull) * cap_;
+    return static_cast<std::size_t>(m >> 64);
   }
   void rehash(std::size_t cap) {
     std::vector<std::uint64_t> old_keys = std::move(keys_);
     std::vector<std::uint32_t> old_vals = std::move(vals_);
     keys_.assign(cap, 0);
     vals_.assign(cap, kNone);
-    mask_ = cap - 1;
-    shift_ = 64 - std::countr_zero(cap);
+    cap_ = cap;
     for (std::size_t i = 0; i < old_keys.size(); ++i) {
       if (old_vals[i] == kNone) continue;
       std::size_t h = hash(old_keys[i]);
-      while (vals_[h] != kNone) h = (h + 1) & mask_;
+      while (vals_[h] != kNone)
+        if (++h == cap_) h = 0;
       keys_[h] = old_keys[i];
       vals_[h] = old_vals[i];
     }
   }
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> vals_;
-  std::size_t mask_ = 0, size_ = 0;
-  int shift_ = 63;
+  std::size_t cap_ = 0, size_ = 0;
 };
 
 struct FrontEdge {
@@ -804,38 +812,57 @@ void Builder::rebuild_front() {
   // Every undirected edge with its triangle count; boundary half-edges become the new front.
   edges_.clear();
   free_edges_.clear();
-  edges_map_ = EdgeMap(tris_.size() * 2);
+  edges_map_ = EdgeMap(0);  // release the old table before the new one is built
   std::fill(head_out_.begin(), head_out_.end(), kNone);
   std::fill(valence_.begin(), valence_.end(), std::uint8_t{0});
   while (!queue_.empty()) queue_.pop();
   deferred_.clear();
+  // Vertex -> triangles (CSR, 4 bytes per corner): each undirected edge {u, v}, u < v, is
+  // found from u's triangles, so no array of all half-edges is ever built (it was the peak of
+  // the whole reconstruction). Edges are visited in (u, v) order, the half starting at u
+  // first: the order the front's edge ids, and so its tie-breaking, depend on.
+  const std::size_t n = p_.size();
+  std::vector<std::uint32_t> start(n + 1, 0);
+  for (const Triangle& t : tris_)
+    for (std::uint32_t v : t) ++start[v + 1];
+  for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+  std::vector<std::uint32_t> vt(start[n]);
+  {
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::uint32_t t = 0; t < tris_.size(); ++t)
+      for (std::uint32_t v : tris_[t]) vt[fill[v]++] = t;
+  }
+  edges_map_ = EdgeMap(tris_.size() * 3 / 2 + 16);
   struct Half {
-    std::uint64_t key;
+    std::uint32_t other;  // the edge's larger end point
     std::uint32_t a, b, opp;
   };
-  std::vector<Half> half;
-  half.reserve(tris_.size() * 3);
-  for (const Triangle& t : tris_)
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)],
-                          c = t[static_cast<std::size_t>((k + 2) % 3)];
-      half.push_back({a < b ? (std::uint64_t{a} << 32) | b : (std::uint64_t{b} << 32) | a, a, b, c});
+  std::vector<Half> halves;
+  for (std::uint32_t u = 0; u < n; ++u) {
+    halves.clear();
+    for (std::uint32_t s = start[u]; s < start[u + 1]; ++s) {
+      const Triangle& t = tris_[vt[s]];
+      const std::size_t k = t[0] == u ? 0 : (t[1] == u ? 1 : 2);
+      const std::uint32_t next = t[(k + 1) % 3], prev = t[(k + 2) % 3];
+      if (next > u) halves.push_back({next, u, next, prev});  // half u -> next
+      if (prev > u) halves.push_back({prev, prev, u, next});  // half prev -> u
     }
-  std::sort(half.begin(), half.end(), [](const Half& l, const Half& r) {
-    return l.key != r.key ? l.key < r.key : l.a < r.a;
-  });
-  for (std::size_t i = 0; i < half.size();) {
-    std::size_t j = i;
-    while (j < half.size() && half[j].key == half[i].key) ++j;
-    const Half& h = half[i];
-    ++valence_[h.a];
-    ++valence_[h.b];
-    if (j - i == 1) {
-      new_edge(h.a, h.b, h.opp);  // inserts the map entry and the out-list link
-    } else {
-      edges_map_.insert(h.a, h.b, kInterior);
+    std::sort(halves.begin(), halves.end(), [](const Half& l, const Half& r) {
+      return l.other != r.other ? l.other < r.other : l.a < r.a;
+    });
+    for (std::size_t i = 0; i < halves.size();) {
+      std::size_t j = i;
+      while (j < halves.size() && halves[j].other == halves[i].other) ++j;
+      const Half& h = halves[i];
+      ++valence_[h.a];
+      ++valence_[h.b];
+      if (j - i == 1) {
+        new_edge(h.a, h.b, h.opp);  // inserts the map entry and the out-list link
+      } else {
+        edges_map_.insert(h.a, h.b, kInterior);
+      }
+      i = j;
     }
-    i = j;
   }
   // Link loops: after repair_fans every vertex has one fan, hence at most one outgoing edge.
   for (std::uint32_t id = 0; id < edges_.size(); ++id) {
@@ -866,42 +893,61 @@ void Builder::orient_components() {
       if (r != r0) parent[r] = r0;
     }
   }
-  // Per component: boundary edges (to know whether it is closed) and signed volume.
-  std::vector<std::uint64_t> half;
-  half.reserve(tris_.size() * 3);
-  for (const Triangle& t : tris_)
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t u = t[static_cast<std::size_t>(k)], v = t[static_cast<std::size_t>((k + 1) % 3)];
-      half.push_back(u < v ? (std::uint64_t{u} << 32) | v : (std::uint64_t{v} << 32) | u);
+  // Compact component ids: the per-component sums below need one slot per component, not per
+  // vertex (memory: this runs at the peak of the reconstruction).
+  std::vector<std::uint32_t> cid(n, kNone);
+  std::uint32_t ncomp = 0;
+  for (const Triangle& t : tris_) {
+    const std::uint32_t r = find(t[0]);
+    if (cid[r] == kNone) cid[r] = ncomp++;
+  }
+  auto comp = [&](const Triangle& t) { return cid[find(t[0])]; };
+  // Per component: boundary edges (to know whether it is closed) and signed volume. An edge
+  // {u, v} is a boundary edge when exactly one of u's triangles contains v (vertex -> triangle
+  // lists, 4 bytes per corner).
+  std::vector<std::uint8_t> open(ncomp, 0);
+  {
+    std::vector<std::uint32_t> start(n + 1, 0);
+    for (const Triangle& t : tris_)
+      for (std::uint32_t v : t) ++start[v + 1];
+    for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+    std::vector<std::uint32_t> vt(start[n]);
+    {
+      std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+      for (std::uint32_t t = 0; t < tris_.size(); ++t)
+        for (std::uint32_t v : tris_[t]) vt[fill[v]++] = t;
     }
-  std::sort(half.begin(), half.end());
-  std::vector<std::uint8_t> open(n, 0);
-  for (std::size_t i = 0; i < half.size();) {
-    std::size_t j = i;
-    while (j < half.size() && half[j] == half[i]) ++j;
-    if (j - i == 1) open[find(static_cast<std::uint32_t>(half[i] >> 32))] = 1;
-    i = j;
+    for (const Triangle& t : tris_)
+      for (std::size_t k = 0; k < 3; ++k) {
+        const std::uint32_t u = t[k], v = t[(k + 1) % 3];
+        int uses = 0;
+        for (std::uint32_t s = start[u]; s < start[u + 1] && uses < 2; ++s) {
+          const Triangle& o = tris_[vt[s]];
+          uses += (o[0] == v || o[1] == v || o[2] == v) ? 1 : 0;
+        }
+        if (uses == 1) open[comp(t)] = 1;
+      }
   }
-  std::vector<Vec3> centroid(n, Vec3::Zero());
-  std::vector<double> vol(n, 0.0), count(n, 0.0);
+  std::vector<Vec3> centroid(ncomp, Vec3::Zero());
+  std::vector<double> vol(ncomp, 0.0), count(ncomp, 0.0);
   for (const Triangle& t : tris_) {
-    const std::uint32_t r = find(t[0]);
-    centroid[r] += p_[t[0]];
-    count[r] += 1;
+    const std::uint32_t c = comp(t);
+    centroid[c] += p_[t[0]];
+    count[c] += 1;
   }
   for (const Triangle& t : tris_) {
-    const std::uint32_t r = find(t[0]);
-    const Vec3 c = centroid[r] / count[r];
-    vol[r] += (p_[t[0]] - c).dot((p_[t[1]] - c).cross(p_[t[2]] - c));
+    const std::uint32_t k = comp(t);
+    const Vec3 c = centroid[k] / count[k];
+    vol[k] += (p_[t[0]] - c).dot((p_[t[1]] - c).cross(p_[t[2]] - c));
   }
-  std::vector<std::uint8_t> flip(n, 0);
-  for (std::uint32_t v = 0; v < n; ++v)
-    if (find(v) == v && count[v] > 0 && !open[v] && vol[v] < 0) {
-      flip[v] = 1;
+  std::vector<std::uint8_t> flip(ncomp, 0);
+  for (std::uint32_t c = 0; c < ncomp; ++c)
+    if (!open[c] && vol[c] < 0) {
+      flip[c] = 1;
       ++res_.flipped_components;
     }
   for (Triangle& t : tris_)
-    if (flip[find(t[0])]) std::swap(t[1], t[2]);
+    if (flip[comp(t)]) std::swap(t[1], t[2]);
 }
 
 FrontResult Builder::run() {
@@ -916,6 +962,7 @@ FrontResult Builder::run() {
     if (state_[s] != VertexState::kFree) continue;
     if (try_seed(s)) grow();
   }
+  std::vector<std::uint32_t>().swap(order);
   // Close sampling gaps, then keep vertices manifold; repairs can open small gaps again, so
   // one more round of each.
   fill_small_loops();
@@ -936,6 +983,7 @@ FrontResult Builder::run() {
   // Guarantee, whatever the rounds above left: no multi-fan vertex in the output (a pinch that
   // survived them becomes a small boundary loop instead).
   if (repair_fans(true) > 0) rebuild_front();
+  edges_map_ = EdgeMap(0);  // not needed any more: free it before the last passes
   orient_components();
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);

@@ -99,41 +99,52 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     throw GeometryError("only " + std::to_string(reduced.size()) +
                         " point(s) left after cube reduction; use a smaller --cube");
 
-  stage("normals");
-  // Spatially sort the reduced points (grid order) so the front walks memory coherently.
-  const double typical = std::max(res.cube_mm, res.spacing.nearest_mm);
-  PointGrid grid;
-  grid.build(reduced, 2.5 * std::max(typical, 1e-12));
-  {
-    std::vector<Vec3> sorted(reduced.size());
-    const auto& order = grid.order();
-    for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = reduced[order[i]];
-    reduced.swap(sorted);
-  }
-  grid.build(reduced, 2.5 * std::max(typical, 1e-12));
-  const LocalFrames frames = estimate_frames(reduced, grid, options.normals);
-  // Re-grid with the measured local spacing so one ring covers the candidate radius.
-  {
-    std::vector<float> sp = frames.spacing;
-    std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2), sp.end());
-    const double median = sp[sp.size() / 2];
-    if (median > 0) grid.build(reduced, 0.5 * (options.front.radius_factor * 1.5 + 0.6) * median);
-  }
-  res.reduced_points = reduced.size();
+  std::vector<std::uint32_t>().swap(kept);  // memory: each stage frees what it no longer needs
 
-  stage("front");
-  FrontResult fr = advance_front(reduced, frames, grid, options.front);
+  FrontResult fr;
+  {
+    stage("normals");
+    // Spatially sort the reduced points (grid order) so the front walks memory coherently.
+    const double typical = std::max(res.cube_mm, res.spacing.nearest_mm);
+    PointGrid grid;
+    grid.build(reduced, 2.5 * std::max(typical, 1e-12));
+    {
+      std::vector<Vec3> sorted(reduced.size());
+      const auto& order = grid.order();
+      for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = reduced[order[i]];
+      reduced.swap(sorted);
+    }
+    grid.build(reduced, 2.5 * std::max(typical, 1e-12));
+    const LocalFrames frames = estimate_frames(reduced, grid, options.normals);
+    // Re-grid with the measured local spacing so one ring covers the candidate radius.
+    {
+      std::vector<float> sp = frames.spacing;
+      std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2),
+                       sp.end());
+      const double median = sp[sp.size() / 2];
+      if (median > 0)
+        grid.build(reduced, 0.5 * (options.front.radius_factor * 1.5 + 0.6) * median);
+    }
+    res.reduced_points = reduced.size();
+
+    stage("front");
+    fr = advance_front(reduced, frames, grid, options.front);
+  }  // frames and grid are freed here, before the output copy
 
   stage("output");
+  // Only vertices used by triangles, in order of first use; the triangles are renumbered in
+  // place (moved, not copied).
   std::vector<std::uint32_t> remap(reduced.size(), 0xffffffffu);
+  std::size_t used = 0;
   for (const Triangle& t : fr.triangles)
     for (std::uint32_t v : t)
-      if (remap[v] == 0xffffffffu) {
-        remap[v] = static_cast<std::uint32_t>(res.mesh.vertices.size());
-        res.mesh.vertices.push_back(reduced[v]);
-      }
-  res.mesh.triangles.reserve(fr.triangles.size());
-  for (const Triangle& t : fr.triangles) res.mesh.triangles.push_back({remap[t[0]], remap[t[1]], remap[t[2]]});
+      if (remap[v] == 0xffffffffu) remap[v] = static_cast<std::uint32_t>(used++);
+  res.mesh.vertices.resize(used);
+  for (std::size_t v = 0; v < reduced.size(); ++v)
+    if (remap[v] != 0xffffffffu) res.mesh.vertices[remap[v]] = reduced[v];
+  res.mesh.triangles = std::move(fr.triangles);
+  for (Triangle& t : res.mesh.triangles)
+    for (std::uint32_t& v : t) v = remap[v];
   res.outliers.reserve(fr.outliers.size());
   for (std::uint32_t v : fr.outliers) res.outliers.push_back(reduced[v]);
   res.seeds = fr.seeds;
