@@ -50,17 +50,21 @@ class ModbusBus final : public RegisterBus {
                       std::span<std::uint16_t> out) override {
     const char* fc =
         kind == RegisterKind::kInput ? "FC04 read input registers" : "FC03 read holding registers";
-    const std::string op = range_text(fc, address, out.size());
+    // The operation text is built only on the error paths: a poll allocates nothing.
+    auto op = [&] { return range_text(fc, address, out.size()); };
     if (out.empty() || out.size() > MODBUS_MAX_READ_REGISTERS)
-      throw DeviceError(DeviceErrorKind::kProtocol, name_, op, "count must be 1..125");
-    recover(op);
+      throw DeviceError(DeviceErrorKind::kProtocol, name_, op(), "count must be 1..125");
+    if (dirty_) recover(op());
     const int n = static_cast<int>(out.size());
     const int rc = kind == RegisterKind::kInput
                        ? modbus_read_input_registers(ctx_.get(), address, n, out.data())
                        : modbus_read_registers(ctx_.get(), address, n, out.data());
-    if (rc == -1) fail(op);
+    if (rc == -1) {
+      const int err = errno;  // before building the message
+      fail(op(), err);
+    }
     if (rc != n) {
-      throw DeviceError(DeviceErrorKind::kProtocol, name_, op,
+      throw DeviceError(DeviceErrorKind::kProtocol, name_, op(),
                         "got " + std::to_string(rc) + " registers");
     }
   }
@@ -75,14 +79,13 @@ class ModbusBus final : public RegisterBus {
     const int rc = single ? modbus_write_register(ctx_.get(), address, values[0])
                           : modbus_write_registers(ctx_.get(), address,
                                                    static_cast<int>(values.size()), values.data());
-    if (rc == -1) fail(op);
+    if (rc == -1) fail(op, errno);
   }
 
   const std::string& name() const override { return name_; }
 
  private:
-  [[noreturn]] void fail(const std::string& op) {
-    const int err = errno;
+  [[noreturn]] void fail(const std::string& op, int err) {
     DeviceError e = modbus_error(name_, op, err);
     // A timed-out or garbled exchange may leave a late reply in flight: resynchronise first.
     if (e.kind() == DeviceErrorKind::kTimeout || (err >= EMBBADCRC && err <= EMBBADSLAVE))

@@ -6,9 +6,7 @@
 #include <catch2/catch.hpp>
 #include <chrono>
 #include <cmath>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "scanmesh/common/error.hpp"
@@ -17,6 +15,7 @@
 #include "scanmesh/drivers/microepsilon_ild1420/device.hpp"
 #include "scanmesh/drivers/transports/serial_stream.hpp"
 #include "scanmesh/sim/emulators/microepsilon_ild1420.hpp"
+#include "support/sensor_harness.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace std::chrono_literals;
@@ -63,58 +62,13 @@ std::vector<std::uint32_t> words_of(const std::vector<RawBlock>& blocks) {
   return out;
 }
 
-struct Collector {
-  std::mutex m;
-  std::vector<SensorSample> samples;
-  std::vector<std::pair<DeviceState, std::string>> states;
-  SensorCallbacks callbacks() {
-    return {[this](const SensorSample& s) {
-              std::lock_guard l(m);
-              samples.push_back(s);
-            },
-            [this](DeviceState st, const std::string& why) {
-              std::lock_guard l(m);
-              states.emplace_back(st, why);
-            }};
-  }
-  std::size_t count() {
-    std::lock_guard l(m);
-    return samples.size();
-  }
-  std::vector<SensorSample> copy() {
-    std::lock_guard l(m);
-    return samples;
-  }
-  std::string reason(DeviceState st) {
-    std::lock_guard l(m);
-    for (auto& [s, why] : states)
-      if (s == st) return why;
-    return {};
-  }
-};
+using Collector = scanmesh::test::SensorCollector;
+using scanmesh::test::wait_until;
 
-template <class Pred>
-bool wait_until(Pred pred, std::chrono::milliseconds limit = 3000ms) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (pred()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return pred();
-}
-
-SensorOptions fast_options() {
-  SensorOptions o;
-  o.name = "ild0";
-  o.timeout = 150ms;
-  o.timeouts_until_lost = 3;
-  o.backoff_initial = 20ms;
-  o.backoff_max = 200ms;
-  return o;
-}
+SensorOptions fast_options() { return scanmesh::test::fast_sensor_options("ild0", 150ms); }
 
 ByteStreamFactory serial_factory(const std::string& link) {
-  return [link] { return open_serial_stream("ild0", {link, 921600, 'N', 8, 1}); };
+  return scanmesh::test::pty_serial_factory("ild0", link, 921600);  // 8N1
 }
 
 }  // namespace
@@ -370,10 +324,7 @@ TEST_CASE("ild1420 device: identity, values, exact commands on the wire",
   Collector c;
   dev.start(c.callbacks());
   REQUIRE(wait_until([&] { return c.count() >= 30; }));
-  dev.stop();
-  const auto n = c.count();
-  std::this_thread::sleep_for(20ms);
-  CHECK(c.count() == n);
+  scanmesh::test::stop_and_check_quiet(dev, c);
   CHECK(emu.received() == "OUTPUT NONE\rGETINFO\rOUTPUT RS422\r");
   const auto samples = c.copy();
   // Values quantised to 1.02 * 10 / 65520 mm; the script cycles 1.0, 2.5, 7.25.

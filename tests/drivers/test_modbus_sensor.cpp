@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -20,6 +19,7 @@
 #include "scanmesh/drivers/modbus_sensor/profile.hpp"
 #include "scanmesh/drivers/transports/modbus_bus.hpp"
 #include "scanmesh/sim/emulators/modbus_emulator.hpp"
+#include "support/sensor_harness.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace std::chrono_literals;
@@ -38,62 +38,15 @@ RegisterField field(std::string name, std::uint16_t address, FieldType type,
   return {std::move(name), RegisterKind::kInput, address, type, order, scale, offset, bit};
 }
 
-/// Thread-safe sample collector.
-struct Collector {
-  std::mutex m;
-  std::vector<SensorSample> samples;
-  std::vector<std::pair<DeviceState, std::string>> states;
-  SensorCallbacks callbacks() {
-    return {[this](const SensorSample& s) {
-              std::lock_guard l(m);
-              samples.push_back(s);
-            },
-            [this](DeviceState st, const std::string& why) {
-              std::lock_guard l(m);
-              states.emplace_back(st, why);
-            }};
-  }
-  std::size_t count() {
-    std::lock_guard l(m);
-    return samples.size();
-  }
-  std::vector<SensorSample> copy() {
-    std::lock_guard l(m);
-    return samples;
-  }
-  bool saw_state(DeviceState st) {
-    std::lock_guard l(m);
-    for (auto& [s, why] : states)
-      if (s == st) return true;
-    return false;
-  }
-  std::string reason(DeviceState st) {
-    std::lock_guard l(m);
-    for (auto& [s, why] : states)
-      if (s == st) return why;
-    return {};
-  }
-};
-
-template <class Pred>
-bool wait_until(Pred pred, std::chrono::milliseconds limit = 3000ms) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (pred()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return pred();
-}
+using Collector = scanmesh::test::SensorCollector;
+using scanmesh::test::wait_until;
 
 SensorOptions fast_options(std::string name = "om0") {
-  SensorOptions o;
-  o.name = std::move(name);
-  o.timeout = 150ms;
-  o.poll_interval = 2000us;
-  o.timeouts_until_lost = 3;
-  o.backoff_initial = 20ms;
-  o.backoff_max = 200ms;
-  return o;
+  return scanmesh::test::fast_sensor_options(std::move(name), 150ms);
+}
+
+RegisterBusFactory tcp_factory(int port) {
+  return scanmesh::test::tcp_modbus_factory("om0", port, 150ms);
 }
 
 std::string baumer_profile_path() {
@@ -329,9 +282,7 @@ TEST_CASE("modbus sensor device: Baumer OM30 over TCP, values, identity, wire re
                                             "12345678", "1.2.3");
   emu.start();
   const int port = emu.port();
-  Device dev(
-      fast_options(), [port] { return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms); },
-      baumer_om30_map());
+  Device dev(fast_options(), tcp_factory(port), baumer_om30_map());
   dev.open();
   CHECK(dev.state() == DeviceState::kOpen);
   const DeviceIdentity id = dev.identify();
@@ -353,10 +304,7 @@ TEST_CASE("modbus sensor device: Baumer OM30 over TCP, values, identity, wire re
   Collector c;
   dev.start(c.callbacks());
   REQUIRE(wait_until([&] { return c.count() >= 8; }));
-  dev.stop();
-  const auto n_after_stop = c.count();
-  std::this_thread::sleep_for(20ms);
-  CHECK(c.count() == n_after_stop);  // no callback after stop()
+  scanmesh::test::stop_and_check_quiet(dev, c);
 
   const auto samples = c.copy();
   // The emulator took measurement 0 during open() (not for the identity reads); samples
@@ -393,9 +341,7 @@ TEST_CASE("modbus sensor device: exceptions, late replies, silence, vanish; then
                         1, 0);
   emu.start();
   const int port = emu.port();
-  Device dev(
-      fast_options(), [port] { return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms); },
-      baumer_om30_map());
+  Device dev(fast_options(), tcp_factory(port), baumer_om30_map());
   dev.open();
   Collector c;
   dev.start(c.callbacks());
@@ -420,7 +366,7 @@ TEST_CASE("modbus sensor device: exceptions, late replies, silence, vanish; then
   }
   SECTION("silence -> kLost after timeouts_until_lost, then back to kAcquiring") {
     emu.set_faults(ModbusFaults{0, 0ms, true});
-    REQUIRE(wait_until([&] { return c.saw_state(DeviceState::kLost); }));
+    REQUIRE(wait_until([&] { return c.saw(DeviceState::kLost); }));
     CHECK(dev.stats().timeouts >= 3);
     CHECK_THAT(c.reason(DeviceState::kLost), Catch::StartsWith("om0: lost: 3 consecutive"));
     emu.set_faults({});
@@ -457,9 +403,7 @@ TEST_CASE("modbus sensor device: open() errors name the device and the operation
   emu.start();
   const int port = emu.port();
   emu.set_faults(ModbusFaults{2, 0ms, false});
-  Device dev(
-      fast_options(), [port] { return open_modbus_tcp("om0", "127.0.0.1", port, 1, 150ms); },
-      baumer_om30_map());
+  Device dev(fast_options(), tcp_factory(port), baumer_om30_map());
   try {
     dev.open();
     FAIL("opened");

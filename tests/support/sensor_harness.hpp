@@ -1,6 +1,7 @@
-// Device-against-emulator harness for the serial sensor driver tests: collects samples and state
+// Device-against-emulator harness for the sensor driver tests: collects samples and state
 // changes, waits with deadlines, opens a driver on an emulator's pty over the real serial
-// transport, and runs the fault tests every request/response sensor must pass.
+// transport (or on a Modbus TCP emulator), and runs the fault tests every request/response
+// sensor must pass.
 // SPDX-License-Identifier: MIT
 #pragma once
 
@@ -18,6 +19,8 @@
 
 #include "scanmesh/drivers/byte_stream.hpp"
 #include "scanmesh/drivers/displacement_sensor.hpp"
+#include "scanmesh/drivers/register_bus.hpp"
+#include "scanmesh/drivers/transports/modbus_bus.hpp"
 #include "scanmesh/drivers/transports/serial_stream.hpp"
 #include "support/temp_dir.hpp"
 
@@ -83,6 +86,13 @@ class SensorCollector {
       if (s == st && reason.find(needle) != std::string::npos) return true;
     return false;
   }
+  /// Reason of the first change to st (empty when there was none).
+  std::string reason(drivers::DeviceState st) {
+    std::lock_guard lock(mutex_);
+    for (const auto& [s, why] : states_)
+      if (s == st) return why;
+    return {};
+  }
   std::string state_log() {
     std::lock_guard lock(mutex_);
     std::string out;
@@ -99,11 +109,12 @@ class SensorCollector {
 };
 
 /// Short timeouts and backoff, so that loss and recovery happen within a test's patience.
-inline drivers::SensorOptions fast_sensor_options(std::string name) {
+inline drivers::SensorOptions fast_sensor_options(std::string name,
+                                                  std::chrono::milliseconds timeout = 100ms) {
   drivers::SensorOptions o;
   o.name = std::move(name);
   o.poll_interval = 2ms;
-  o.timeout = 100ms;
+  o.timeout = timeout;
   o.timeouts_until_lost = 3;
   o.backoff_initial = 20ms;
   o.backoff_max = 200ms;
@@ -115,6 +126,15 @@ inline drivers::ByteStreamFactory pty_serial_factory(std::string device_name, st
                                                      unsigned baud) {
   return [device_name = std::move(device_name), link = std::move(link), baud] {
     return drivers::open_serial_stream(device_name, {link, baud});
+  };
+}
+
+/// Opens a Modbus TCP connection to an emulator on 127.0.0.1 (again at every reconnection).
+inline drivers::RegisterBusFactory tcp_modbus_factory(std::string device_name, int port,
+                                                      std::chrono::milliseconds timeout,
+                                                      int unit = 1) {
+  return [device_name = std::move(device_name), port, timeout, unit] {
+    return drivers::open_modbus_tcp(device_name, "127.0.0.1", port, unit, timeout);
   };
 }
 

@@ -1,5 +1,5 @@
-// PolledSerialSensor: open/identify, the worker loop, lost/reconnect and statistics shared by the
-// request/response ASCII sensor drivers (see common/polled_sensor.hpp).
+// PolledSerialSensor: open/identify, one exchange per worker step and reconnecting over a
+// ByteStream for the request/response ASCII sensor drivers (see common/polled_sensor.hpp).
 // SPDX-License-Identifier: MIT
 #include "scanmesh/drivers/common/polled_sensor.hpp"
 
@@ -30,14 +30,14 @@ void PolledSerialSensor::Exchange::sample(SensorSample& sample) {
 }
 
 void PolledSerialSensor::Exchange::error_reply(std::string detail) {
-  owner_.stats_.error_replies.fetch_add(1);
+  owner_.counters().error_replies.fetch_add(1);
   detail_ = std::move(detail);
   if (outcome_ != Outcome::kSample) outcome_ = Outcome::kError;
   done_ = !owner_.streaming();
 }
 
 void PolledSerialSensor::Exchange::malformed(std::string_view why) {
-  owner_.stats_.malformed.fetch_add(1);
+  owner_.counters().malformed.fetch_add(1);
   if (!owner_.streaming() && !done_) {
     detail_ = "malformed reply: ";
     detail_ += why;
@@ -47,7 +47,7 @@ void PolledSerialSensor::Exchange::malformed(std::string_view why) {
 }
 
 void PolledSerialSensor::Exchange::invalid(std::string detail) {
-  owner_.stats_.malformed.fetch_add(1);
+  owner_.counters().malformed.fetch_add(1);
   if (done_) return;
   detail_ = std::move(detail);
   if (outcome_ != Outcome::kSample) outcome_ = Outcome::kError;
@@ -58,98 +58,58 @@ void PolledSerialSensor::Exchange::invalid(std::string detail) {
 
 PolledSerialSensor::PolledSerialSensor(SensorOptions options, ByteStreamFactory transport,
                                        std::size_t read_buffer)
-    : options_(std::move(options)),
+    : SensorLifecycle(std::move(options)),
       factory_(std::move(transport)),
       read_buffer_(std::clamp<std::size_t>(read_buffer, 1, kMaxReadBuffer)) {}
 
 PolledSerialSensor::~PolledSerialSensor() { close(); }
 
 void PolledSerialSensor::check_options() const {
-  if (options_.timeout < std::chrono::milliseconds(1) ||
-      options_.timeout > std::chrono::seconds(60))
-    throw ConfigError(options_.name + ": timeout must be 1 ms .. 60 s");
-  if (options_.timeouts_until_lost < 1)
-    throw ConfigError(options_.name + ": timeouts_until_lost must be >= 1");
-  if (!factory_) throw ConfigError(options_.name + ": no transport factory");
+  const SensorOptions& o = options();
+  if (o.timeout < std::chrono::milliseconds(1) || o.timeout > std::chrono::seconds(60))
+    throw ConfigError(o.name + ": timeout must be 1 ms .. 60 s");
+  if (o.timeouts_until_lost < 1) throw ConfigError(o.name + ": timeouts_until_lost must be >= 1");
+  if (!factory_) throw ConfigError(o.name + ": no transport factory");
 }
 
 std::string PolledSerialSensor::where() const {
-  return transport_ ? transport_->name() : options_.name;
+  return transport_ ? transport_->name() : options().name;
 }
 
-void PolledSerialSensor::open() {
-  if (running_) return;
-  transport_.reset();
+void PolledSerialSensor::open_device() {
   transport_ = factory_();  // throws DeviceError naming the device and the port
   const std::string port = transport_->name();
   std::string detail;
-  Outcome outcome;
-  try {
-    transport_->discard_input();
-    reset_codec();
-    outcome = exchange(false, detail);
-  } catch (...) {
-    transport_.reset();
-    throw;
-  }
+  transport_->discard_input();
+  reset_codec();
+  const Outcome outcome = exchange(false, detail);
   if (outcome != Outcome::kSample) {
-    transport_.reset();
     throw DeviceError(
         outcome == Outcome::kTimeout ? DeviceErrorKind::kTimeout : DeviceErrorKind::kProtocol, port,
         open_operation(), detail);
   }
-  identity_ = device_identity();
-  state_.set(DeviceState::kOpen, "", nullptr);
-}
-
-void PolledSerialSensor::close() noexcept {
-  stop();
-  transport_.reset();
-  state_.set(DeviceState::kClosed, "", nullptr);
-}
-
-void PolledSerialSensor::start(SensorCallbacks callbacks) {
-  if (running_) return;
-  if (state_.get() == DeviceState::kClosed)
-    throw DeviceError(DeviceErrorKind::kProtocol, options_.name, "start", "open() first");
-  callbacks_ = std::move(callbacks);
-  running_ = true;
-  state_.set(transport_ ? DeviceState::kAcquiring : DeviceState::kLost, "start", &callbacks_);
-  worker_.start([this](Worker& w) { run(w); },
-                [this](const std::exception& e) {
-                  // Last resort: run() catches everything itself.
-                  lose(options_.name + ": worker stopped: " + e.what());
-                });
-}
-
-void PolledSerialSensor::stop() noexcept {
-  if (!running_) return;
-  worker_.stop();
-  running_ = false;
-  // No callback after stop(): the state change is not reported.
-  state_.set(transport_ ? DeviceState::kOpen : DeviceState::kLost, "", nullptr);
+  set_identity(device_identity());
 }
 
 void PolledSerialSensor::emit(SensorSample& sample) {
-  sample.seq = seq_.next();
-  stats_.samples.fetch_add(1);
-  if (callbacks_.on_sample) callbacks_.on_sample(sample);
+  sample.seq = sequence().next();
+  deliver(sample);
 }
 
 PolledSerialSensor::Outcome PolledSerialSensor::exchange(bool emit, std::string& detail) {
   const std::string_view req = request();
   const bool poll = !req.empty();
-  const auto deadline = Clock::now() + options_.timeout;
+  const std::chrono::milliseconds timeout = options().timeout;
+  const auto deadline = Clock::now() + timeout;
   // Strict request/response: the next request only after the reply (or the timeout).
-  if (poll) transport_->write_all(req, options_.timeout);
+  if (poll) transport_->write_all(req, timeout);
   std::uint8_t storage[kMaxReadBuffer];
   const std::span<std::uint8_t> buffer(storage, read_buffer_);
   Exchange ex(*this, emit);
   for (;;) {
     const auto now = Clock::now();
     if (now >= deadline) {
-      detail =
-          std::string(poll ? "no reply" : "no record") + " within " + ms_text(options_.timeout);
+      detail = std::string(poll ? "no reply" : "no record") + " within " + ms_text(timeout);
       return Outcome::kTimeout;
     }
     const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - now);
@@ -164,68 +124,33 @@ PolledSerialSensor::Outcome PolledSerialSensor::exchange(bool emit, std::string&
   }
 }
 
-void PolledSerialSensor::lose(const std::string& reason) {
-  transport_.reset();
+bool PolledSerialSensor::reconnect_once() {
+  transport_ = factory_();
+  transport_->discard_input();
   reset_codec();
-  state_.set(DeviceState::kLost, reason, &callbacks_);
+  std::string detail;
+  // An error reply is an answer too; only silence keeps the device lost.
+  return exchange(false, detail) != Outcome::kTimeout;
 }
 
-bool PolledSerialSensor::reconnect(Worker& worker, Backoff& backoff) {
-  if (!worker.sleep_for(backoff.next())) return false;
-  try {
-    transport_ = factory_();
-    transport_->discard_input();
-    reset_codec();
-    std::string detail;
-    // The port opening is not enough (a silent device keeps its port): it must answer too.
-    if (exchange(false, detail) == Outcome::kTimeout) {
-      transport_.reset();
-      return false;
-    }
-  } catch (const std::exception&) {
-    transport_.reset();
-    return false;
-  }
-  stats_.reconnects.fetch_add(1);
-  backoff.reset();
-  state_.set(DeviceState::kAcquiring, options_.name + ": reconnected", &callbacks_);
-  return true;
+PolledSerialSensor::Step PolledSerialSensor::acquire(std::string& timeout_detail) {
+  return exchange(true, timeout_detail) == Outcome::kTimeout ? Step::kTimeout : Step::kAnswered;
 }
 
-void PolledSerialSensor::run(Worker& worker) {
-  Backoff backoff(options_.backoff_initial, options_.backoff_max);
-  const bool poll = !streaming();
-  int consecutive_timeouts = 0;
-  while (!worker.stop_requested()) {
-    if (!transport_) {
-      reconnect(worker, backoff);
-      consecutive_timeouts = 0;
-      continue;
-    }
-    try {
-      std::string detail;
-      if (exchange(true, detail) == Outcome::kTimeout) {
-        stats_.timeouts.fetch_add(1);
-        transport_->discard_input();  // a late reply must not pass for the next one
-        reset_codec();
-        if (++consecutive_timeouts >= options_.timeouts_until_lost) {
-          lose(where() + ": " + operation() + ": " + detail + ", " +
-               std::to_string(consecutive_timeouts) + " times in a row");
-          consecutive_timeouts = 0;
-          continue;
-        }
-      } else {
-        consecutive_timeouts = 0;
-      }
-    } catch (const std::exception& e) {
-      // DeviceError kDisconnected (port gone) or a write timeout: the device is lost.
-      lose(e.what());
-      consecutive_timeouts = 0;
-      continue;
-    }
-    if (poll && options_.poll_interval.count() > 0 && !worker.sleep_for(options_.poll_interval))
-      break;
-  }
+void PolledSerialSensor::on_timeout() {
+  transport_->discard_input();  // a late reply must not pass for the next one
+  reset_codec();
+}
+
+std::string PolledSerialSensor::lost_after_timeouts(int count, const std::string& detail) const {
+  return where() + ": " + operation() + ": " + detail + ", " + std::to_string(count) +
+         " times in a row";
+}
+
+bool PolledSerialSensor::pause(Worker& worker) {
+  const auto interval = options().poll_interval;
+  if (streaming() || interval.count() <= 0) return true;
+  return worker.sleep_for(interval);
 }
 
 }  // namespace scanmesh::drivers

@@ -8,20 +8,6 @@ namespace {
 
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
-/// Splits off the next comma-separated field; false when nothing is left.
-bool next_field(std::string_view& rest, std::string_view& field) {
-  if (rest.empty()) return false;
-  const std::size_t comma = rest.find(',');
-  if (comma == std::string_view::npos) {
-    field = rest;
-    rest = {};
-  } else {
-    field = rest.substr(0, comma);
-    rest = rest.substr(comma + 1);
-  }
-  return true;
-}
-
 bool parse_digits(std::string_view field, std::size_t width, int& value) {
   if (field.size() != width) return false;
   value = 0;

@@ -21,20 +21,6 @@ bool header_is(std::string_view line, std::string_view header) {
   return true;
 }
 
-/// Splits off the next comma-separated field; false when no field is left.
-bool next_field(std::string_view& rest, std::string_view& field) {
-  if (rest.empty()) return false;
-  const std::size_t comma = rest.find(',');
-  if (comma == std::string_view::npos) {
-    field = rest;
-    rest = {};
-  } else {
-    field = rest.substr(0, comma);
-    rest = rest.substr(comma + 1);
-  }
-  return true;
-}
-
 }  // namespace
 
 std::string_view error_text(int code) {

@@ -67,6 +67,21 @@ class LineFramer {
   std::uint64_t overlong_ = 0;
 };
 
+/// Splits off the next comma-separated field of a reply line (KEYENCE "M0,+01.234,-FFFFFFF");
+/// false when no field is left. Inline: the codecs call it per field on their hot path.
+inline bool next_field(std::string_view& rest, std::string_view& field) {
+  if (rest.empty()) return false;
+  const std::size_t comma = rest.find(',');
+  if (comma == std::string_view::npos) {
+    field = rest;
+    rest = {};
+  } else {
+    field = rest.substr(0, comma);
+    rest = rest.substr(comma + 1);
+  }
+  return true;
+}
+
 /// Parses a decimal number of the fixed-width sensor formats ("+01.2345", "-0012.30",
 /// "+0025000"): optional sign, digits with at most one '.', nothing else. Returns false for
 /// anything else (dashes, X, F, spaces) without throwing. Exact for up to 15 digits.

@@ -1,6 +1,7 @@
-// PolledSerialSensor: the device lifecycle shared by the request/response ASCII sensor drivers
-// over a ByteStream (KEYENCE LK-G / IL, Panasonic HL-G1): open and identify, worker loop, lost /
-// reconnect with backoff, statistics. A driver adds only its protocol through a few hooks.
+// PolledSerialSensor: the SensorLifecycle of the request/response ASCII sensor drivers over a
+// ByteStream (KEYENCE LK-G / IL, Panasonic HL-G1): open and identify, one exchange per worker step,
+// lost / reconnect through the ByteStream factory. A driver adds only its protocol through a few
+// hooks.
 // SPDX-License-Identifier: MIT
 //
 // Behaviour (drivers/README.md "How a device behaves"):
@@ -25,26 +26,15 @@
 #include <string_view>
 
 #include "scanmesh/drivers/byte_stream.hpp"
-#include "scanmesh/drivers/device_support.hpp"
-#include "scanmesh/drivers/displacement_sensor.hpp"
+#include "scanmesh/drivers/common/sensor_lifecycle.hpp"
 
 namespace scanmesh::drivers {
 
-class PolledSerialSensor : public DisplacementSensor {
+class PolledSerialSensor : public SensorLifecycle {
  public:
   /// Stops the worker (a subclass must call close() in its own destructor too: the worker calls
   /// its hooks, which must not outlive the subclass's members).
   ~PolledSerialSensor() override;
-
-  const std::string& name() const override { return options_.name; }
-  void open() override;
-  void close() noexcept override;
-  void start(SensorCallbacks callbacks) override;
-  void stop() noexcept override;
-
-  DeviceIdentity identify() const override { return identity_; }
-  DeviceState state() const override { return state_.get(); }
-  DeviceStats stats() const override { return stats_.snapshot(); }
 
  protected:
   /// One exchange in progress: the driver's feed() reports what its codec found through it.
@@ -84,7 +74,6 @@ class PolledSerialSensor : public DisplacementSensor {
   /// Validates the common options (timeout 1 ms .. 60 s, timeouts_until_lost >= 1, a factory);
   /// throws ConfigError. Called by the subclass constructor after its own checks.
   void check_options() const;
-  const SensorOptions& options() const { return options_; }
 
   // ---- protocol hooks ----
   /// Bytes of one request. Empty: nothing is sent, the device streams records on its own.
@@ -107,22 +96,21 @@ class PolledSerialSensor : public DisplacementSensor {
   /// One exchange; samples go to the callback when emit. detail explains a non-sample.
   Outcome exchange(bool emit, std::string& detail);
   void emit(SensorSample& sample);
-  void run(Worker& worker);
-  void lose(const std::string& reason);
-  bool reconnect(Worker& worker, Backoff& backoff);
   std::string where() const;
 
-  SensorOptions options_;
+  // ---- SensorLifecycle hooks ----
+  void open_device() override;
+  bool reconnect_once() override;
+  Step acquire(std::string& timeout_detail) override;
+  void drop_transport() noexcept override { transport_.reset(); }
+  bool has_transport() const override { return transport_ != nullptr; }
+  std::string lost_after_timeouts(int count, const std::string& detail) const override;
+  void on_timeout() override;
+  bool pause(Worker& worker) override;
+
   ByteStreamFactory factory_;
   std::size_t read_buffer_;
-  DeviceIdentity identity_;
   std::unique_ptr<ByteStream> transport_;  // used by the worker while running
-  SequenceTracker seq_;
-  AtomicStats stats_;
-  StateCell state_;
-  SensorCallbacks callbacks_;
-  Worker worker_;
-  bool running_ = false;
 };
 
 }  // namespace scanmesh::drivers

@@ -30,7 +30,7 @@
 #include <string>
 #include <string_view>
 
-#include "scanmesh/drivers/common/line_framer.hpp"
+#include "scanmesh/drivers/common/line_decoder.hpp"
 #include "scanmesh/drivers/samples.hpp"
 
 namespace scanmesh::drivers::keyence_il {
@@ -99,52 +99,19 @@ struct Sr {
   static std::string encode(int id, int data_number);
 };
 
-/// Stream decoder: feed any chunks; gets whole replies back. Never throws on device input.
-class Decoder {
- public:
-  Decoder() : framer_(kMaxLine) {}
-
-  /// on_reply(const Reply&) per reply; on_malformed(const char* reason) per rejected line. A
-  /// reply found behind garbage in the same line comes first, then the garbage is reported.
-  template <class OnReply, class OnMalformed>
-  void feed(std::string_view bytes, OnReply&& on_reply, OnMalformed&& on_malformed) {
-    const std::uint64_t overlong = framer_.overlong_lines();
-    framer_.feed(bytes, [&](std::string_view line) {
-      const char* why = parse_reply(line, reply_);
-      if (why == nullptr) {
-        on_reply(reply_);
-        return;
-      }
-      for (std::size_t i = 1; i + 2 <= line.size(); ++i) {
-        if (parse_reply(line.substr(i), reply_) == nullptr) {
-          on_reply(reply_);
-          ++malformed_;
-          on_malformed("garbage before reply");
-          return;
-        }
-      }
-      ++malformed_;
-      on_malformed(why);
-    });
-    for (std::uint64_t k = overlong; k < framer_.overlong_lines(); ++k) {
-      ++malformed_;
-      on_malformed("line too long");
-    }
+/// The IL reply syntax for LineDecoder.
+struct LineSyntax {
+  using Reply = keyence_il::Reply;
+  static constexpr std::size_t kMaxLine = keyence_il::kMaxLine;
+  static constexpr bool kReuseReply = true;  // reused: a Reply with 16 readings is ~400 bytes
+  static const char* parse(std::string_view line, Reply& reply) { return parse_reply(line, reply); }
+  static std::size_t resync(std::string_view line, std::size_t from) {
+    return resync_any_header(line, from);
   }
-  template <class OnReply, class OnMalformed>
-  void feed(std::span<const std::uint8_t> bytes, OnReply&& on_reply, OnMalformed&& on_malformed) {
-    feed(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
-         std::forward<OnReply>(on_reply), std::forward<OnMalformed>(on_malformed));
-  }
-
-  void reset() { framer_.clear(); }
-  std::uint64_t malformed() const { return malformed_; }
-  std::uint64_t noise_bytes() const { return framer_.noise_bytes(); }
-
- private:
-  LineFramer framer_;
-  Reply reply_;  // reused: a Reply with 16 readings is ~400 bytes
-  std::uint64_t malformed_ = 0;
 };
+
+/// Stream decoder: feed any chunks; gets whole replies back. Never throws on device input.
+/// A reply found behind garbage in the same line comes first, then the garbage is reported.
+using Decoder = LineDecoder<LineSyntax>;
 
 }  // namespace scanmesh::drivers::keyence_il

@@ -26,7 +26,7 @@
 #include <string>
 #include <string_view>
 
-#include "scanmesh/drivers/common/line_framer.hpp"
+#include "scanmesh/drivers/common/line_decoder.hpp"
 #include "scanmesh/drivers/samples.hpp"
 
 namespace scanmesh::drivers::keyence_lkg {
@@ -106,58 +106,20 @@ struct ExitSetting {
   static constexpr std::string_view encode() { return "R0\r"; }
 };
 
-/// Stream decoder: feed any chunks; gets whole replies back. Never throws on device input.
-class Decoder {
- public:
-  Decoder() : framer_(kMaxLine) {}
-
-  /// on_reply(const Reply&) for every reply; on_malformed(const char* reason) for every
-  /// rejected line (garbage, over-long, unknown header, bad value field). For a reply found
-  /// behind garbage in the same line, on_reply comes first, then on_malformed.
-  template <class OnReply, class OnMalformed>
-  void feed(std::string_view bytes, OnReply&& on_reply, OnMalformed&& on_malformed) {
-    const std::uint64_t overlong = framer_.overlong_lines();
-    framer_.feed(bytes, [&](std::string_view line) {
-      Reply reply;
-      const char* why = parse_reply(line, reply);
-      if (why == nullptr) {
-        on_reply(reply);
-        return;
-      }
-      // Resynchronise inside the line: line noise that arrived just before a reply is glued
-      // to its front (no terminator in between). A reply header further on is still usable;
-      // the garbage in front of it is reported as malformed.
-      for (std::size_t i = 1; i + 2 <= line.size(); ++i) {
-        if (parse_reply(line.substr(i), reply) == nullptr) {
-          on_reply(reply);
-          ++malformed_;
-          on_malformed("garbage before reply");
-          return;
-        }
-      }
-      ++malformed_;
-      on_malformed(why);
-    });
-    for (std::uint64_t k = overlong; k < framer_.overlong_lines(); ++k) {
-      ++malformed_;
-      on_malformed("line too long");
-    }
+/// The LK-G reply syntax for LineDecoder.
+struct LineSyntax {
+  using Reply = keyence_lkg::Reply;
+  static constexpr std::size_t kMaxLine = keyence_lkg::kMaxLine;
+  static constexpr bool kReuseReply = false;
+  static const char* parse(std::string_view line, Reply& reply) { return parse_reply(line, reply); }
+  /// A reply header further on in a line is still usable (noise glued to its front).
+  static std::size_t resync(std::string_view line, std::size_t from) {
+    return resync_any_header(line, from);
   }
-  template <class OnReply, class OnMalformed>
-  void feed(std::span<const std::uint8_t> bytes, OnReply&& on_reply, OnMalformed&& on_malformed) {
-    feed(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
-         std::forward<OnReply>(on_reply), std::forward<OnMalformed>(on_malformed));
-  }
-
-  /// Drops a partial line (after a timeout, so a stale half reply cannot glue to the next).
-  void reset() { framer_.clear(); }
-  std::uint64_t malformed() const { return malformed_; }
-  /// Non-printable bytes dropped by the framer (line noise).
-  std::uint64_t noise_bytes() const { return framer_.noise_bytes(); }
-
- private:
-  LineFramer framer_;
-  std::uint64_t malformed_ = 0;
 };
+
+/// Stream decoder: feed any chunks; gets whole replies back. Never throws on device input.
+/// Rejected lines: garbage, over-long, unknown header, bad value field.
+using Decoder = LineDecoder<LineSyntax>;
 
 }  // namespace scanmesh::drivers::keyence_lkg

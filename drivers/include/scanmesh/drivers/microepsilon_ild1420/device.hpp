@@ -12,13 +12,11 @@
 #pragma once
 
 #include <memory>
-#include <mutex>
 #include <string>
 #include <vector>
 
 #include "scanmesh/drivers/byte_stream.hpp"
-#include "scanmesh/drivers/device_support.hpp"
-#include "scanmesh/drivers/displacement_sensor.hpp"
+#include "scanmesh/drivers/common/sensor_lifecycle.hpp"
 #include "scanmesh/drivers/error.hpp"
 #include "scanmesh/drivers/microepsilon_ild1420/codec.hpp"
 
@@ -39,27 +37,18 @@ struct Options {
   double max_rate_hz = 4000;
 };
 
-class Device final : public DisplacementSensor {
+/// open() opens the port, stops the output (OUTPUT NONE), reads GETINFO. The output stays
+/// stopped until start(). It throws DeviceError
+/// ("ild0 (/dev/ttyUSB0): GETINFO: no reply within 500 ms") or, when neither GETINFO nor the
+/// options give a measuring range, DeviceError kProtocol. start() sends OUTPUT RS422 and decodes
+/// the stream on the worker thread.
+class Device final : public SensorLifecycle {
  public:
   /// Throws ConfigError for an invalid layout or measuring range.
   Device(SensorOptions options, ByteStreamFactory transport, Options ild = {});
   ~Device() override;
 
-  const std::string& name() const override { return options_.name; }
-  /// Opens the port, stops the output (OUTPUT NONE), reads GETINFO. The output stays stopped
-  /// until start(). Throws DeviceError
-  /// ("ild0 (/dev/ttyUSB0): GETINFO: no reply within 500 ms") or, when neither GETINFO nor
-  /// the options give a measuring range, DeviceError kProtocol.
-  void open() override;
-  void close() noexcept override;
-  /// Sends OUTPUT RS422 and decodes the stream on the worker thread.
-  void start(SensorCallbacks callbacks) override;
-  void stop() noexcept override;
-
-  DeviceIdentity identify() const override;
   SensorCapabilities capabilities() const override;
-  DeviceState state() const override { return state_.get(); }
-  DeviceStats stats() const override;
 
   /// Measuring range in use (from GETINFO or the options).
   double measuring_range_mm() const { return scaling_.measuring_range_mm; }
@@ -68,25 +57,26 @@ class Device final : public DisplacementSensor {
   /// Sends a command and waits for its "->" prompt (binary bytes are skipped); bytes after the
   /// prompt are handed to the stream decoder when `stream_after` is set. Throws DeviceError.
   Reply command(const Command& cmd, bool stream_after);
-  void run(Worker& worker);
-  bool reconnect(Worker& worker, const std::string& reason);
+  /// Sends OUTPUT RS422 (values after its prompt go to the decoder); an error reply is counted.
+  void start_output();
   void deliver(std::span<const std::uint8_t> bytes, Timestamp t_host);
 
-  SensorOptions options_;
+  // ---- SensorLifecycle hooks ----
+  void open_device() override;
+  bool reconnect_once() override;
+  Step acquire(std::string& timeout_detail) override;
+  void drop_transport() noexcept override { stream_.reset(); }
+  bool has_transport() const override { return stream_ != nullptr; }
+  std::string lost_after_timeouts(int count, const std::string& detail) const override;
+  void on_start() override;
+
   ByteStreamFactory transport_;
   Options ild_;
   Scaling scaling_;
   std::unique_ptr<ByteStream> stream_;
   StreamDecoder decoder_;
   ReplyParser replies_;
-  mutable std::mutex identity_mutex_;
-  DeviceIdentity identity_;
-  SensorCallbacks callbacks_;
-  SequenceTracker seq_{18};
-  AtomicStats stats_;
-  StateCell state_;
-  Worker worker_;
-  bool running_ = false;
+  bool need_output_ = true;  // the worker's first step (re)starts the stream
   std::vector<std::uint8_t> buffer_;
 };
 

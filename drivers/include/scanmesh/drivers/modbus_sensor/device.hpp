@@ -12,60 +12,52 @@
 //   owns the framing, so there is no separate "malformed" class); no sample is made from them.
 #pragma once
 
+#include <chrono>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <vector>
 
-#include "scanmesh/drivers/device_support.hpp"
-#include "scanmesh/drivers/displacement_sensor.hpp"
+#include "scanmesh/drivers/common/sensor_lifecycle.hpp"
 #include "scanmesh/drivers/error.hpp"
 #include "scanmesh/drivers/modbus_sensor/codec.hpp"
 #include "scanmesh/drivers/register_bus.hpp"
 
 namespace scanmesh::drivers::modbus_sensor {
 
-class Device final : public DisplacementSensor {
+/// open() opens the bus, reads the identity strings the map has, and reads the measurement block
+/// once; it throws DeviceError "<name>: <operation>: <detail>". The worker polls at
+/// poll_interval (a fixed rate: a slow poll shortens the next pause).
+class Device final : public SensorLifecycle {
  public:
   /// Validates the map (throws ConfigError). `transport` opens the bus (and reopens it after a
   /// loss); it throws DeviceError.
   Device(SensorOptions options, RegisterBusFactory transport, RegisterMap map);
   ~Device() override;
 
-  const std::string& name() const override { return options_.name; }
-  /// Opens the bus, reads the identity strings the map has, and reads the measurement block
-  /// once. Throws DeviceError "<name>: <operation>: <detail>".
-  void open() override;
-  void close() noexcept override;
-  void start(SensorCallbacks callbacks) override;
-  void stop() noexcept override;
-
-  DeviceIdentity identify() const override;
   SensorCapabilities capabilities() const override;
-  DeviceState state() const override { return state_.get(); }
-  DeviceStats stats() const override { return stats_.snapshot(); }
 
  private:
-  void run(Worker& worker);
   /// One poll: reads every block; throws DeviceError from the bus.
   Measurement poll_once();
-  /// Drops the bus and reopens it with backoff until it answers; false when stopped.
-  bool reconnect(Worker& worker, const std::string& reason);
   [[noreturn]] void rethrow_named(const DeviceError& e, const std::string& operation) const;
 
-  SensorOptions options_;
+  // ---- SensorLifecycle hooks ----
+  void open_device() override;
+  /// Reopens the bus; back when it answers one poll.
+  bool reconnect_once() override;
+  Step acquire(std::string& timeout_detail) override;
+  void drop_transport() noexcept override { bus_.reset(); }
+  bool has_transport() const override { return bus_ != nullptr; }
+  std::string lost_after_timeouts(int count, const std::string& detail) const override;
+  void on_start() override { next_poll_ = std::chrono::steady_clock::now(); }
+  void on_reconnected() override { next_poll_ = std::chrono::steady_clock::now(); }
+  bool pause(Worker& worker) override;
+
   RegisterBusFactory transport_;
   MapDecoder decoder_;
   std::unique_ptr<RegisterBus> bus_;  // used by open() and then only by the worker
   std::vector<std::uint16_t> image_;
-  mutable std::mutex identity_mutex_;
-  DeviceIdentity identity_;
-  SensorCallbacks callbacks_;
-  SequenceTracker seq_;
-  AtomicStats stats_;
-  StateCell state_;
-  Worker worker_;
-  bool running_ = false;
+  std::chrono::steady_clock::time_point next_poll_;  // worker only
 };
 
 }  // namespace scanmesh::drivers::modbus_sensor

@@ -25,7 +25,7 @@
 #include <string>
 #include <string_view>
 
-#include "scanmesh/drivers/common/line_framer.hpp"
+#include "scanmesh/drivers/common/line_decoder.hpp"
 
 namespace scanmesh::drivers::panasonic_hlg1 {
 
@@ -82,55 +82,20 @@ const char* parse_reply(std::string_view line, Reply& reply);
 /// Parses a sign + 7 digit value field. False for anything else.
 bool parse_counts(std::string_view field, std::int32_t& counts);
 
-/// Stream decoder: feed any chunks; gets whole replies back. Never throws on device input.
-class Decoder {
- public:
-  Decoder() : framer_(kMaxLine) {}
-
-  /// on_reply(const Reply&) for every reply, on_malformed(const char* reason) for every
-  /// rejected line (bad BCC, garbage, over-long, wrong layout). A reply found behind garbage
-  /// in the same line is delivered first, then the garbage is reported.
-  template <class OnReply, class OnMalformed>
-  void feed(std::string_view bytes, OnReply&& on_reply, OnMalformed&& on_malformed) {
-    const std::uint64_t overlong = framer_.overlong_lines();
-    framer_.feed(bytes, [&](std::string_view line) {
-      Reply reply;
-      const char* why = parse_reply(line, reply);
-      if (why == nullptr) {
-        on_reply(reply);
-        return;
-      }
-      // Resynchronise on a later `%`: noise glued to the front of a frame.
-      for (std::size_t i = line.find('%', 1); i != std::string_view::npos;
-           i = line.find('%', i + 1)) {
-        if (parse_reply(line.substr(i), reply) == nullptr) {
-          on_reply(reply);
-          ++malformed_;
-          on_malformed("garbage before reply");
-          return;
-        }
-      }
-      ++malformed_;
-      on_malformed(why);
-    });
-    for (std::uint64_t k = overlong; k < framer_.overlong_lines(); ++k) {
-      ++malformed_;
-      on_malformed("line too long");
-    }
+/// The HL-G1 frame syntax for LineDecoder.
+struct LineSyntax {
+  using Reply = panasonic_hlg1::Reply;
+  static constexpr std::size_t kMaxLine = panasonic_hlg1::kMaxLine;
+  static constexpr bool kReuseReply = false;
+  static const char* parse(std::string_view line, Reply& reply) { return parse_reply(line, reply); }
+  /// Resynchronise on a later `%`: noise glued to the front of a frame.
+  static std::size_t resync(std::string_view line, std::size_t from) {
+    return line.find('%', from);
   }
-  template <class OnReply, class OnMalformed>
-  void feed(std::span<const std::uint8_t> bytes, OnReply&& on_reply, OnMalformed&& on_malformed) {
-    feed(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
-         std::forward<OnReply>(on_reply), std::forward<OnMalformed>(on_malformed));
-  }
-
-  void reset() { framer_.clear(); }
-  std::uint64_t malformed() const { return malformed_; }
-  std::uint64_t noise_bytes() const { return framer_.noise_bytes(); }
-
- private:
-  LineFramer framer_;
-  std::uint64_t malformed_ = 0;
 };
+
+/// Stream decoder: feed any chunks; gets whole replies back. Never throws on device input.
+/// Rejected lines: bad BCC, garbage, over-long, wrong layout.
+using Decoder = LineDecoder<LineSyntax>;
 
 }  // namespace scanmesh::drivers::panasonic_hlg1
