@@ -976,18 +976,25 @@ FrontResult Builder::run() {
     grow();
     fill_small_loops();
   }
-  // The last word: every vertex keeps a single fan (checked at every vertex: two closed fans
-  // touching at one vertex leave no trace in the front); gaps this opens are closed by ear
-  // clipping only.
-  for (int round = 0; round < 3 && repair_fans(true) > 0; ++round) {
+  // The last word: every vertex keeps a single fan; gaps this opens are closed by ear clipping
+  // only.
+  for (int round = 0; round < 3 && repair_fans() > 0; ++round) {
     rebuild_front();
     fill_small_loops();
   }
   split_flat_triangle_holes();
-  // Guarantee, whatever the rounds above left: no multi-fan vertex in the output (a pinch that
-  // survived them becomes a small boundary loop instead).
-  if (repair_fans(true) > 0) rebuild_front();
-  edges_map_ = EdgeMap(0);  // not needed any more: free it before the last passes
+  // Guarantee, checked at every vertex (two closed fans touching at one vertex leave no trace
+  // in the front): no multi-fan vertex in the output. A pinch found here is cut and its gap
+  // closed by ear clipping; one that survives two such rounds stays a small boundary loop. The
+  // edge table is freed first: this check's vertex lists would otherwise sit on top of it at
+  // the peak of the whole reconstruction.
+  for (int round = 0; round < 3; ++round) {
+    edges_map_ = EdgeMap(0);
+    if (repair_fans(true) == 0) break;
+    rebuild_front();
+    if (round < 2) fill_small_loops();
+  }
+  edges_map_ = EdgeMap(0);  // not needed any more
   orient_components();
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);
