@@ -88,6 +88,24 @@ class EdgeMap {
   std::size_t cap_ = 0, size_ = 0;
 };
 
+/// The triangles around every vertex, as compressed lists: those of vertex v are
+/// list[start[v]] .. list[start[v + 1] - 1], in triangle order. 4 bytes per corner; used by
+/// the passes that need adjacency once (fan repair, front rebuild, orientation) instead of an
+/// array of every half-edge.
+struct VertexTriangles {
+  std::vector<std::uint32_t> start, list;
+
+  VertexTriangles(std::size_t n, const std::vector<Triangle>& tris) : start(n + 1, 0) {
+    for (const Triangle& t : tris)
+      for (std::uint32_t v : t) ++start[v + 1];
+    for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+    list.resize(start[n]);
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::uint32_t t = 0; t < tris.size(); ++t)
+      for (std::uint32_t v : tris[t]) list[fill[v]++] = t;
+  }
+};
+
 struct FrontEdge {
   std::uint32_t a, b;      // directed a -> b, mesh on the left
   std::uint32_t opp;       // third vertex of the triangle behind the edge
@@ -710,14 +728,9 @@ std::size_t Builder::repair_fans(bool thorough) {
   if (!any) return 0;
   for (int round = 0; round < 8; ++round) {
     const std::size_t n = p_.size();
-    std::vector<std::uint32_t> start(n + 1, 0);
-    for (const Triangle& t : tris_)
-      for (std::uint32_t v : t) ++start[v + 1];
-    for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
-    std::vector<std::uint32_t> vt(start[n]);
-    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-    for (std::uint32_t t = 0; t < tris_.size(); ++t)
-      for (std::uint32_t v : tris_[t]) vt[fill[v]++] = t;
+    const VertexTriangles adj(n, tris_);
+    const std::vector<std::uint32_t>& start = adj.start;
+    const std::vector<std::uint32_t>& vt = adj.list;
     std::vector<std::uint8_t> dead(tris_.size(), 0);
     std::size_t removed = 0;
     std::vector<int> fan;
@@ -826,16 +839,9 @@ void Builder::rebuild_front() {
   // the whole reconstruction). Edges are visited in (u, v) order, the half starting at u
   // first: the order the front's edge ids, and so its tie-breaking, depend on.
   const std::size_t n = p_.size();
-  std::vector<std::uint32_t> start(n + 1, 0);
-  for (const Triangle& t : tris_)
-    for (std::uint32_t v : t) ++start[v + 1];
-  for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
-  std::vector<std::uint32_t> vt(start[n]);
-  {
-    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-    for (std::uint32_t t = 0; t < tris_.size(); ++t)
-      for (std::uint32_t v : tris_[t]) vt[fill[v]++] = t;
-  }
+  const VertexTriangles adj(n, tris_);
+  const std::vector<std::uint32_t>& start = adj.start;
+  const std::vector<std::uint32_t>& vt = adj.list;
   edges_map_ = EdgeMap(tris_.size() * 3 / 2 + 16);
   struct Half {
     std::uint32_t other;  // the edge's larger end point
@@ -911,16 +917,9 @@ void Builder::orient_components() {
   // lists, 4 bytes per corner).
   std::vector<std::uint8_t> open(ncomp, 0);
   {
-    std::vector<std::uint32_t> start(n + 1, 0);
-    for (const Triangle& t : tris_)
-      for (std::uint32_t v : t) ++start[v + 1];
-    for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
-    std::vector<std::uint32_t> vt(start[n]);
-    {
-      std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-      for (std::uint32_t t = 0; t < tris_.size(); ++t)
-        for (std::uint32_t v : tris_[t]) vt[fill[v]++] = t;
-    }
+    const VertexTriangles adj(n, tris_);
+    const std::vector<std::uint32_t>& start = adj.start;
+    const std::vector<std::uint32_t>& vt = adj.list;
     for (const Triangle& t : tris_)
       for (std::size_t k = 0; k < 3; ++k) {
         const std::uint32_t u = t[k], v = t[(k + 1) % 3];
