@@ -6,18 +6,6 @@ namespace scanmesh::drivers::keyence_il {
 
 namespace {
 
-bool is_digit(char c) { return c >= '0' && c <= '9'; }
-
-bool parse_digits(std::string_view field, std::size_t width, int& value) {
-  if (field.size() != width) return false;
-  value = 0;
-  for (char c : field) {
-    if (!is_digit(c)) return false;
-    value = value * 10 + (c - '0');
-  }
-  return true;
-}
-
 /// M0: values; MS/DR: control output + value pairs.
 const char* parse_values(std::string_view rest, bool with_control, Reply& reply) {
   std::string_view field;
@@ -56,10 +44,8 @@ bool parse_value(std::string_view field, Reading& reading) {
   // [unverified] alarm: all dashes, or X after an optional sign.
   {
     const std::size_t i = (field[0] == '+' || field[0] == '-') ? 1 : 0;
-    bool all_dash = true;
-    for (char c : field) all_dash = all_dash && c == '-';
-    bool all_x = field.size() - i >= 2;
-    for (std::size_t k = i; k < field.size(); ++k) all_x = all_x && field[k] == 'X';
+    const bool all_dash = all_chars_are(field, '-');
+    const bool all_x = field.size() - i >= 2 && all_chars_are(field.substr(i), 'X');
     if (all_dash || all_x) {
       reading.status = SensorStatus::kAlarm;
       reading.value = std::numeric_limits<double>::quiet_NaN();
@@ -68,9 +54,7 @@ bool parse_value(std::string_view field, Reading& reading) {
   }
   if (field[0] != '+' && field[0] != '-') return false;
   // [unverified] over range: sign + F...
-  bool all_f = true;
-  for (std::size_t k = 1; k < field.size(); ++k) all_f = all_f && field[k] == 'F';
-  if (all_f) {
+  if (all_chars_are(field.substr(1), 'F')) {
     reading.status = SensorStatus::kOverRange;
     reading.value = std::numeric_limits<double>::quiet_NaN();
     return true;
@@ -78,9 +62,7 @@ bool parse_value(std::string_view field, Reading& reading) {
   // Quirk: the point position depends on the head (±**.***, ±***.**, ±****.*), the width
   // does not: sign + 6 characters. A shorter or longer field is a corrupted one.
   if (field.size() != kValueWidth) return false;
-  for (std::size_t k = 1; k < field.size(); ++k)
-    if (!is_digit(field[k]) && field[k] != '.') return false;
-  double v = 0;
+  double v = 0;  // parse_fixed_decimal: sign, digits and at most one point, nothing else
   if (!parse_fixed_decimal(field, v)) return false;
   reading.status = SensorStatus::kOk;
   reading.value = v;

@@ -11,8 +11,6 @@ namespace {
 
 char upper(char c) { return (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c; }
 
-bool is_digit(char c) { return c >= '0' && c <= '9'; }
-
 /// Header match, case-insensitive: the reply repeats the command as the host sent it.
 bool header_is(std::string_view line, std::string_view header) {
   if (line.size() < header.size()) return false;
@@ -49,11 +47,9 @@ bool parse_value(std::string_view field, Reading& reading) {
   // Alarm / invalid value: all dashes (the sign position is a dash too) or X, optionally after
   // a sign. Quirk: these are statuses of a valid reply, not errors.
   {
-    std::size_t i = (field[0] == '+' || field[0] == '-') ? 1 : 0;
-    bool all_dash = field.size() >= kValueWidth - 1;
-    for (char c : field) all_dash = all_dash && c == '-';
-    bool all_x = field.size() - i >= kValueWidth - 1;
-    for (std::size_t k = i; k < field.size(); ++k) all_x = all_x && field[k] == 'X';
+    const std::size_t i = (field[0] == '+' || field[0] == '-') ? 1 : 0;
+    const bool all_dash = field.size() >= kValueWidth - 1 && all_chars_are(field, '-');
+    const bool all_x = field.size() - i >= kValueWidth - 1 && all_chars_are(field.substr(i), 'X');
     if (all_dash || all_x) {
       reading.status = SensorStatus::kAlarm;
       reading.value = std::numeric_limits<double>::quiet_NaN();
@@ -63,16 +59,12 @@ bool parse_value(std::string_view field, Reading& reading) {
   // Fixed width from here on: sign + 7 characters.
   if (field.size() != kValueWidth || (field[0] != '+' && field[0] != '-')) return false;
   // Over range: sign + FFFFFFF (quirk: the sign tells the side, the value is meaningless).
-  bool all_f = true;
-  for (std::size_t k = 1; k < field.size(); ++k) all_f = all_f && field[k] == 'F';
-  if (all_f) {
+  if (all_chars_are(field.substr(1), 'F')) {
     reading.status = SensorStatus::kOverRange;
     reading.value = std::numeric_limits<double>::quiet_NaN();
     return true;
   }
-  for (std::size_t k = 1; k < field.size(); ++k)
-    if (!is_digit(field[k]) && field[k] != '.') return false;
-  double v = 0;
+  double v = 0;  // parse_fixed_decimal: sign, digits and at most one point, nothing else
   if (!parse_fixed_decimal(field, v)) return false;
   reading.status = SensorStatus::kOk;
   reading.value = v;
@@ -124,7 +116,7 @@ const char* parse_reply(std::string_view line, Reply& reply) {
     if (!next_field(rest, cmd) || !next_field(rest, code) || !rest.empty())
       return "ER reply needs <cmd>,<code>";
     if (cmd.empty() || cmd.size() > reply.error_command.size()) return "ER command field size";
-    if (code.size() != 2 || !is_digit(code[0]) || !is_digit(code[1]))
+    if (code.size() != 2 || !is_ascii_digit(code[0]) || !is_ascii_digit(code[1]))
       return "ER code is not 2 digits";
     reply.kind = ReplyKind::kError;
     reply.error_command_size = static_cast<std::uint8_t>(cmd.size());

@@ -8,7 +8,6 @@ namespace {
 
 constexpr char kHex[] = "0123456789ABCDEF";
 
-bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
 int hex_value(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -81,7 +80,7 @@ bool parse_counts(std::string_view field, std::int32_t& counts) {
   if (field.size() != kValueWidth || (field[0] != '+' && field[0] != '-')) return false;
   std::int32_t v = 0;
   for (std::size_t i = 1; i < field.size(); ++i) {
-    if (!is_digit(field[i])) return false;
+    if (!is_ascii_digit(field[i])) return false;
     v = v * 10 + (field[i] - '0');
   }
   counts = field[0] == '-' ? -v : v;
@@ -92,7 +91,7 @@ const char* parse_reply(std::string_view line, Reply& reply) {
   // Shortest frame: %nn!cc + BCC = 8 characters.
   if (line.size() < 8) return "frame too short";
   if (line[0] != '%') return "frame does not start with %";
-  if (!is_digit(line[1]) || !is_digit(line[2])) return "unit number is not 2 digits";
+  if (!is_ascii_digit(line[1]) || !is_ascii_digit(line[2])) return "unit number is not 2 digits";
   const char type = line[3];
   if (type != '$' && type != '!') return "neither $ reply nor ! error";
   // Quirk: ** in place of the BCC is accepted; otherwise the BCC must match.
@@ -111,7 +110,7 @@ const char* parse_reply(std::string_view line, Reply& reply) {
   reply.unit = static_cast<std::uint8_t>((line[1] - '0') * 10 + (line[2] - '0'));
   const std::string_view rest = body.substr(4);
   if (type == '!') {
-    if (rest.size() != 2 || !is_digit(rest[0]) || !is_digit(rest[1]))
+    if (rest.size() != 2 || !is_ascii_digit(rest[0]) || !is_ascii_digit(rest[1]))
       return "error code is not 2 digits";
     reply.kind = ReplyKind::kError;
     reply.error_code = static_cast<std::uint8_t>((rest[0] - '0') * 10 + (rest[1] - '0'));

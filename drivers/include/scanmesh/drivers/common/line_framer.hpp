@@ -67,6 +67,27 @@ class LineFramer {
   std::uint64_t overlong_ = 0;
 };
 
+inline bool is_ascii_digit(char c) { return c >= '0' && c <= '9'; }
+
+/// Exactly `width` decimal digits (a 2-digit ID, a 3-digit data number, an error code).
+inline bool parse_digits(std::string_view field, std::size_t width, int& value) {
+  if (field.size() != width) return false;
+  int v = 0;
+  for (const char c : field) {
+    if (!is_ascii_digit(c)) return false;
+    v = v * 10 + (c - '0');
+  }
+  value = v;
+  return true;
+}
+
+/// Whether every character of `text` is `c` (true for an empty text).
+inline bool all_chars_are(std::string_view text, char c) {
+  for (const char x : text)
+    if (x != c) return false;
+  return true;
+}
+
 /// Splits off the next comma-separated field of a reply line (KEYENCE "M0,+01.234,-FFFFFFF");
 /// false when no field is left. Inline: the codecs call it per field on their hot path.
 inline bool next_field(std::string_view& rest, std::string_view& field) {
