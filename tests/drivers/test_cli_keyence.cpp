@@ -9,26 +9,15 @@
 #include <sstream>
 
 #include "scanmesh/sim/emulators/keyence_lkg.hpp"
+#include "support/json_lines.hpp"
 #include "support/process.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace std::chrono_literals;
 using nlohmann::json;
+using scanmesh::test::json_lines;
 using scanmesh::test::run_program;
 using scanmesh::test::TempDir;
-
-namespace {
-
-std::vector<json> json_lines(const std::string& out) {
-  std::vector<json> lines;
-  std::istringstream in(out);
-  std::string line;
-  while (std::getline(in, line))
-    if (!line.empty()) lines.push_back(json::parse(line));
-  return lines;
-}
-
-}  // namespace
 
 TEST_CASE("device read: N samples from an LK-G emulator as JSON lines", "[drivers][cli]") {
   TempDir dir;

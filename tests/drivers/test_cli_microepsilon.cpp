@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "scanmesh/sim/emulators/microepsilon_ild1420.hpp"
+#include "support/json_lines.hpp"
 #include "support/process.hpp"
 #include "support/temp_dir.hpp"
 
@@ -28,12 +29,9 @@ TEST_CASE("device read: an ILD1420 stream through the real binary", "[drivers][c
                               emu.port(), "--samples", "30", "--json"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
-  std::istringstream in(r.out);
-  std::string line;
   int n = 0, ok = 0, no_target = 0;
   std::uint64_t last_seq = 0;
-  while (std::getline(in, line)) {
-    const json j = json::parse(line);
+  for (const json& j : scanmesh::test::json_lines(r.out)) {
     const auto seq = j.at("seq").get<std::uint64_t>();
     if (n > 0) CHECK(seq > last_seq);
     last_seq = seq;

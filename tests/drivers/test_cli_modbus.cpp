@@ -9,23 +9,16 @@
 #include <sstream>
 
 #include "scanmesh/sim/emulators/modbus_emulator.hpp"
+#include "support/json_lines.hpp"
 #include "support/process.hpp"
 #include "support/temp_dir.hpp"
 
 using nlohmann::json;
+using scanmesh::test::json_lines;
 using scanmesh::test::run_program;
 using scanmesh::test::TempDir;
 
 namespace {
-
-std::vector<json> json_lines(const std::string& out) {
-  std::vector<json> lines;
-  std::istringstream in(out);
-  std::string line;
-  while (std::getline(in, line))
-    if (!line.empty()) lines.push_back(json::parse(line));
-  return lines;
-}
 
 void check_values(const std::vector<json>& lines, std::size_t n) {
   REQUIRE(lines.size() == n);
