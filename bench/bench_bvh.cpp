@@ -65,11 +65,12 @@ struct Figures {
   std::vector<double> t;       ///< hit distance per ray (NaN: miss)
 };
 
-Figures run_own(const recon::Mesh& mesh, const std::vector<Ray>& rays, double receiver_dx) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const sim::Bvh bvh(mesh);
-  std::printf("  own BVH: built in %.1f ms (%zu nodes)\n", seconds_since(t0) * 1e3,
-              bvh.node_count());
+/// Times a ray caster on the raster rays (nearest hit) and on the shadow rays of their hits
+/// towards a receiver beside the emitter, best of 3 each. intersect(origin, dir, t, triangle)
+/// and occluded(point, to_receiver) wrap the caster under test.
+template <class Intersect, class Occluded>
+Figures measure(const char* who, const recon::Mesh& mesh, const std::vector<Ray>& rays,
+                double receiver_dx, Intersect&& intersect, Occluded&& occluded) {
   Figures f;
   f.t.assign(rays.size(), std::nan(""));
   std::vector<Vec3> points;
@@ -80,11 +81,12 @@ Figures run_own(const recon::Mesh& mesh, const std::vector<Ray>& rays, double re
     tris.clear();
     const auto t1 = std::chrono::steady_clock::now();
     for (std::size_t i = 0; i < rays.size(); ++i) {
-      sim::Bvh::Hit h;
-      if (bvh.intersect(rays[i].origin, rays[i].dir, 0, 1e9, h)) {
-        f.t[i] = h.t;
-        points.push_back(rays[i].origin + h.t * rays[i].dir);
-        tris.push_back(h.triangle);
+      double t = 0;
+      std::uint32_t tri = 0;
+      if (intersect(rays[i].origin, rays[i].dir, t, tri)) {
+        f.t[i] = t;
+        points.push_back(rays[i].origin + t * rays[i].dir);
+        tris.push_back(tri);
       }
     }
     best = std::min(best, seconds_since(t1));
@@ -93,21 +95,34 @@ Figures run_own(const recon::Mesh& mesh, const std::vector<Ray>& rays, double re
   f.hits = points.size();
   for (std::size_t k = 0; k < points.size(); ++k)
     f.max_plane_error = std::max(f.max_plane_error, plane_distance(mesh, tris[k], points[k]));
-  // Shadow rays from each hit towards a receiver beside the emitter.
   best = 1e9;
   std::size_t shadowed = 0;
   for (int rep = 0; rep < 3; ++rep) {
     shadowed = 0;
     const auto t1 = std::chrono::steady_clock::now();
-    for (const Vec3& p : points) {
-      const Vec3 to = Vec3(p.x() + receiver_dx, p.y(), p.z() + 100) - p;
-      shadowed += bvh.occluded(p, to, 1e-6, 1.0) ? 1 : 0;
-    }
+    for (const Vec3& p : points) shadowed += occluded(p, Vec3(receiver_dx, 0, 100)) ? 1 : 0;
     best = std::min(best, seconds_since(t1));
   }
   f.shadow_per_s = static_cast<double>(points.size()) / best;
-  std::printf("  own BVH: %zu of %zu shadow rays blocked\n", shadowed, points.size());
+  std::printf("  %s: %zu of %zu shadow rays blocked\n", who, shadowed, points.size());
   return f;
+}
+
+Figures run_own(const recon::Mesh& mesh, const std::vector<Ray>& rays, double receiver_dx) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const sim::Bvh bvh(mesh);
+  std::printf("  own BVH: built in %.1f ms (%zu nodes)\n", seconds_since(t0) * 1e3,
+              bvh.node_count());
+  return measure(
+      "own BVH", mesh, rays, receiver_dx,
+      [&](const Vec3& o, const Vec3& d, double& t, std::uint32_t& tri) {
+        sim::Bvh::Hit h;
+        if (!bvh.intersect(o, d, 0, 1e9, h)) return false;
+        t = h.t;
+        tri = h.triangle;
+        return true;
+      },
+      [&](const Vec3& p, const Vec3& to) { return bvh.occluded(p, to, 1e-6, 1.0); });
 }
 
 #ifdef SCANMESH_HAVE_EMBREE
@@ -135,63 +150,40 @@ Figures run_embree(const recon::Mesh& mesh, const std::vector<Ray>& rays, double
               RTC_VERSION_MAJOR, RTC_VERSION_MINOR, seconds_since(t0) * 1e3);
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  Figures f;
-  f.t.assign(rays.size(), std::nan(""));
-  std::vector<Vec3> points;
-  std::vector<std::uint32_t> tris;
-  double best = 1e9;
-  for (int rep = 0; rep < 3; ++rep) {
-    points.clear();
-    tris.clear();
-    const auto t1 = std::chrono::steady_clock::now();
-    for (std::size_t i = 0; i < rays.size(); ++i) {
-      RTCRayHit rh{};
-      rh.ray.org_x = static_cast<float>(rays[i].origin.x());
-      rh.ray.org_y = static_cast<float>(rays[i].origin.y());
-      rh.ray.org_z = static_cast<float>(rays[i].origin.z());
-      rh.ray.dir_x = static_cast<float>(rays[i].dir.x());
-      rh.ray.dir_y = static_cast<float>(rays[i].dir.y());
-      rh.ray.dir_z = static_cast<float>(rays[i].dir.z());
-      rh.ray.tnear = 0;
-      rh.ray.tfar = 1e30f;
-      rh.ray.mask = ~0u;
-      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rtcIntersect1(scene, &ctx, &rh);
-      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-        f.t[i] = rh.ray.tfar;
-        points.push_back(rays[i].origin + static_cast<double>(rh.ray.tfar) * rays[i].dir);
-        tris.push_back(rh.hit.primID);
-      }
-    }
-    best = std::min(best, seconds_since(t1));
-  }
-  f.rays_per_s = static_cast<double>(rays.size()) / best;
-  f.hits = points.size();
-  for (std::size_t k = 0; k < points.size(); ++k)
-    f.max_plane_error = std::max(f.max_plane_error, plane_distance(mesh, tris[k], points[k]));
-  best = 1e9;
-  std::size_t shadowed = 0;
-  for (int rep = 0; rep < 3; ++rep) {
-    shadowed = 0;
-    const auto t1 = std::chrono::steady_clock::now();
-    for (const Vec3& p : points) {
-      RTCRay r{};
-      r.org_x = static_cast<float>(p.x());
-      r.org_y = static_cast<float>(p.y());
-      r.org_z = static_cast<float>(p.z());
-      r.dir_x = static_cast<float>(receiver_dx);
-      r.dir_y = 0;
-      r.dir_z = 100;
-      r.tnear = 1e-6f;
-      r.tfar = 1;
-      r.mask = ~0u;
-      rtcOccluded1(scene, &ctx, &r);
-      shadowed += r.tfar < 0 ? 1 : 0;  // Embree sets tfar = -inf when occluded
-    }
-    best = std::min(best, seconds_since(t1));
-  }
-  f.shadow_per_s = static_cast<double>(points.size()) / best;
-  std::printf("  Embree: %zu of %zu shadow rays blocked\n", shadowed, points.size());
+  const Figures f = measure(
+      "Embree", mesh, rays, receiver_dx,
+      [&](const Vec3& o, const Vec3& d, double& t, std::uint32_t& tri) {
+        RTCRayHit rh{};
+        rh.ray.org_x = static_cast<float>(o.x());
+        rh.ray.org_y = static_cast<float>(o.y());
+        rh.ray.org_z = static_cast<float>(o.z());
+        rh.ray.dir_x = static_cast<float>(d.x());
+        rh.ray.dir_y = static_cast<float>(d.y());
+        rh.ray.dir_z = static_cast<float>(d.z());
+        rh.ray.tnear = 0;
+        rh.ray.tfar = 1e30f;
+        rh.ray.mask = ~0u;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &ctx, &rh);
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+        t = rh.ray.tfar;
+        tri = rh.hit.primID;
+        return true;
+      },
+      [&](const Vec3& p, const Vec3& to) {
+        RTCRay r{};
+        r.org_x = static_cast<float>(p.x());
+        r.org_y = static_cast<float>(p.y());
+        r.org_z = static_cast<float>(p.z());
+        r.dir_x = static_cast<float>(to.x());
+        r.dir_y = static_cast<float>(to.y());
+        r.dir_z = static_cast<float>(to.z());
+        r.tnear = 1e-6f;
+        r.tfar = 1;
+        r.mask = ~0u;
+        rtcOccluded1(scene, &ctx, &r);
+        return r.tfar < 0;  // Embree sets tfar = -inf when occluded
+      });
   rtcReleaseScene(scene);
   rtcReleaseDevice(device);
   return f;
