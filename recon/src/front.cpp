@@ -721,21 +721,53 @@ std::size_t Builder::repair_fans(bool thorough) {
   std::size_t total = 0;
   // A vertex whose triangles form several fans is non-manifold: keep its largest fan. While the
   // front matches the mesh, such vertices are exactly those with more than one open sector
-  // (triangles are only ever added in a vertex's open sector), so most calls end here.
-  bool any = thorough;
-  for (std::uint32_t v = 0; v < head_out_.size() && !any; ++v)
-    any = head_out_[v] != kNone && edges_[head_out_[v]].next_out != kNone;
-  if (!any) return 0;
+  // (triangles are only ever added in a vertex's open sector), so only they are examined, and
+  // in later rounds only the corners of the triangles just removed (the fans of no other vertex
+  // changed). The thorough check examines every vertex.
+  const std::size_t n = p_.size();
+  std::vector<std::uint32_t> check;  // vertices to examine, ascending (thorough: all)
+  if (!thorough) {
+    for (std::uint32_t v = 0; v < n; ++v)
+      if (head_out_[v] != kNone && edges_[head_out_[v]].next_out != kNone) check.push_back(v);
+    if (check.empty()) return 0;
+  }
+  std::vector<std::uint8_t> marked(thorough ? 0 : n, 0);
+  std::vector<int> fan;
+  std::vector<std::uint32_t> size;
   for (int round = 0; round < 8; ++round) {
-    const std::size_t n = p_.size();
-    const VertexTriangles adj(n, tris_);
-    const std::vector<std::uint32_t>& start = adj.start;
-    const std::vector<std::uint32_t>& vt = adj.list;
+    // Triangles around the examined vertices, in triangle order: vertex -> triangle lists over
+    // all vertices when thorough, otherwise over the few vertices in `check` only.
+    std::vector<std::uint32_t> start, vt;
+    if (thorough) {
+      VertexTriangles adj(n, tris_);
+      start = std::move(adj.start);
+      vt = std::move(adj.list);
+    } else {
+      for (std::uint32_t v : check) marked[v] = 1;
+      std::vector<std::pair<std::uint32_t, std::uint32_t>> corners;  // (vertex, triangle)
+      for (std::uint32_t t = 0; t < tris_.size(); ++t)
+        for (std::uint32_t v : tris_[t])
+          if (marked[v]) corners.emplace_back(v, t);
+      for (std::uint32_t v : check) marked[v] = 0;
+      std::sort(corners.begin(), corners.end());
+      start.assign(check.size() + 1, 0);
+      vt.resize(corners.size());
+      std::size_t k = 0;
+      for (std::size_t c = 0; c < check.size(); ++c) {
+        while (k < corners.size() && corners[k].first == check[c]) {
+          vt[k] = corners[k].second;
+          ++k;
+        }
+        start[c + 1] = static_cast<std::uint32_t>(k);
+      }
+    }
+    const std::size_t count = thorough ? n : check.size();
     std::vector<std::uint8_t> dead(tris_.size(), 0);
     std::size_t removed = 0;
-    std::vector<int> fan;
-    for (std::uint32_t v = 0; v < n; ++v) {
-      const std::uint32_t b0 = start[v], b1 = start[v + 1];
+    std::vector<std::uint32_t> next_check;
+    for (std::uint32_t c = 0; c < count; ++c) {
+      const std::uint32_t v = thorough ? c : check[c];
+      const std::uint32_t b0 = start[c], b1 = start[c + 1];
       if (b1 - b0 < 2) continue;
       // union-find over the triangles of v: join triangles sharing an edge (v, w)
       const std::uint32_t m = b1 - b0;
@@ -754,7 +786,7 @@ std::size_t Builder::repair_fans(bool thorough) {
           const int ri = find(static_cast<int>(i)), rj = find(static_cast<int>(j));
           if (ri != rj) fan[static_cast<std::size_t>(rj)] = ri;
         }
-      std::vector<std::uint32_t> size(m, 0);
+      size.assign(m, 0);
       std::size_t roots = 0;
       for (std::uint32_t i = 0; i < m; ++i) {
         const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
@@ -768,6 +800,8 @@ std::size_t Builder::repair_fans(bool thorough) {
         if (static_cast<std::size_t>(find(static_cast<int>(i))) != keep && !dead[vt[b0 + i]]) {
           dead[vt[b0 + i]] = 1;
           ++removed;
+          if (!thorough)
+            for (std::uint32_t x : tris_[vt[b0 + i]]) next_check.push_back(x);
         }
     }
     if (removed == 0) break;
@@ -778,6 +812,11 @@ std::size_t Builder::repair_fans(bool thorough) {
     tris_.resize(w);
     res_.removed_fan_triangles += removed;
     front_stale_ = true;  // triangles went away behind the front's back
+    if (!thorough) {
+      std::sort(next_check.begin(), next_check.end());
+      next_check.erase(std::unique(next_check.begin(), next_check.end()), next_check.end());
+      check.swap(next_check);
+    }
   }
   return total;
 }
