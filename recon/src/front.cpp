@@ -123,12 +123,23 @@ struct QueueItem {
   }
 };
 
-/// Counter-clockwise angle from u to w around n, in [0, 2 pi).
-double ccw_angle(const Vec3& u, const Vec3& w, const Vec3& n) {
-  const Vec3 up = u - u.dot(n) * n, wp = w - w.dot(n) * n;
-  double ang = std::atan2(n.dot(up.cross(wp)), up.dot(wp));
-  if (ang < 0) ang += 2 * kPi;
-  return ang;
+/// A monotone stand-in for the counter-clockwise angle from u to w around the unit normal n:
+/// the "diamond angle" of the (unnormalised) cosine and sine, in [0, 4): 0 = 0 degrees,
+/// 1 = 90, 2 = 180, 3 = 270. Sector tests and the queue order need only the order of angles,
+/// so this replaces atan2 (and every square root) on the front's hottest path.
+double ccw_turn(const Vec3& u, const Vec3& w, const Vec3& n) {
+  // Components in the plane normal to n: n . (u_p x w_p) = n . (u x w) and
+  // u_p . w_p = u . w - (u . n)(w . n).
+  const double x = u.dot(w) - u.dot(n) * w.dot(n);
+  const double y = n.dot(u.cross(w));
+  if (y >= 0) return x >= 0 ? (x + y > 0 ? y / (x + y) : 0.0) : 1.0 - x / (y - x);
+  return x < 0 ? 2.0 - y / (-x - y) : 3.0 + x / (x - y);
+}
+
+/// ccw_turn of an angle given in degrees, in [0, 360).
+double turn_of_degrees(double deg) {
+  const double r = deg * kPi / 180;
+  return ccw_turn(Vec3(1, 0, 0), Vec3(std::cos(r), std::sin(r), 0), Vec3(0, 0, 1));
 }
 
 /// Orientation of (p, q, r) in the plane with normal n: > 0 counter-clockwise.
@@ -230,20 +241,19 @@ class Builder {
     return std::min<double>(f_.spacing[v], max_spacing_);
   }
 
-  /// Unmeshed angle at the end vertex b of edge e (between e and its successor).
-  [[nodiscard]] double front_angle_at_end(std::uint32_t eid) const {
+  /// Unmeshed angle at the end vertex b of edge e (between e and its successor), as ccw_turn.
+  [[nodiscard]] double front_turn_at_end(std::uint32_t eid) const {
     const FrontEdge& e = edges_[eid];
     const FrontEdge& n = edges_[e.next];
-    const Vec3 nb = vnormal(e.b, edge_normal(e));
-    return ccw_angle(p_[e.a] - p_[e.b], p_[n.b] - p_[e.b], nb);
+    const Vec3 nb = vnormal(e.b, tri_normal(e.a, e.b, e.opp));
+    return ccw_turn(p_[e.a] - p_[e.b], p_[n.b] - p_[e.b], nb);
   }
   void push(std::uint32_t eid) {
     FrontEdge& e = edges_[eid];
     if (!e.alive) return;
     ++e.stamp;
-    const double ang = std::min(front_angle_at_end(eid), front_angle_at_end(e.prev));
-    const double deg = ang * 180 / kPi;
-    const float key = deg < 120 ? static_cast<float>(deg) : static_cast<float>(1000.0 + seq_++);
+    const double turn = std::min(front_turn_at_end(eid), front_turn_at_end(e.prev));
+    const float key = turn < ear_turn_ ? static_cast<float>(turn) : static_cast<float>(1000.0 + seq_++);
     queue_.push(QueueItem{key, eid, e.stamp});
   }
 
@@ -282,6 +292,8 @@ class Builder {
   void split_flat_triangle_holes();
 
   static constexpr double kMaxSparsity = 2.5;
+  /// Edges whose front angle at either end is below 120 degrees are processed first.
+  const double ear_turn_ = turn_of_degrees(120);
   double max_spacing_ = 0;
   std::span<const Vec3> p_;
   const LocalFrames& f_;
@@ -414,15 +426,15 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   if (!close_a) {
     const FrontEdge& pe = edges_[e.prev];
     const Vec3 na = vnormal(a, n1);
-    const double wedge = ccw_angle(p_[pe.a] - pa, pb - pa, na);
-    const double ang = ccw_angle(p_[pe.a] - pa, pp - pa, na);
+    const double wedge = ccw_turn(p_[pe.a] - pa, pb - pa, na);
+    const double ang = ccw_turn(p_[pe.a] - pa, pp - pa, na);
     if (!(ang > 0 && ang < wedge)) return false;
   }
   if (!close_b) {
     const FrontEdge& ne = edges_[e.next];
     const Vec3 nb = vnormal(b, n1);
-    const double wedge = ccw_angle(pa - pb, p_[ne.b] - pb, nb);
-    const double ang = ccw_angle(pa - pb, pp - pb, nb);
+    const double wedge = ccw_turn(pa - pb, p_[ne.b] - pb, nb);
+    const double ang = ccw_turn(pa - pb, pp - pb, nb);
     if (!(ang > 0 && ang < wedge)) return false;
   }
   const bool p_on_front = state_[p] == VertexState::kFront;
@@ -435,8 +447,8 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
     const FrontEdge& in = edges_[out.prev];
     const Vec3 np = vnormal(p, n1);
     const Vec3 r = p_[in.a] - pp;
-    const double wedge = ccw_angle(r, p_[out.b] - pp, np);
-    const double ab = ccw_angle(r, pb - pp, np), aa = ccw_angle(r, pa - pp, np);
+    const double wedge = ccw_turn(r, p_[out.b] - pp, np);
+    const double ab = ccw_turn(r, pb - pp, np), aa = ccw_turn(r, pa - pp, np);
     if (!(ab > 0 && ab < aa && aa < wedge)) return false;
   }
   // The new edges must not cross nearby front edges, and no front vertex may lie inside the
@@ -697,13 +709,13 @@ void Builder::fill_small_loops() {
         const std::uint32_t c = edges_[fe.next].b;
         if (ring.size() > 3 && edges_map_.find(fe.a, c) != nullptr) continue;
         if (min_angle_cos(fe.a, fe.b, c) > cos_fill_angle) continue;  // no slivers
-        const double ang = front_angle_at_end(r);
+        const double ang = front_turn_at_end(r);
         if (ang < best_angle) {
           best_angle = ang;
           best = r;
         }
       }
-      if (best == kNone || (best_angle >= kPi && ring.size() > 3)) break;
+      if (best == kNone || (best_angle >= 2.0 && ring.size() > 3)) break;
       const std::uint32_t c = edges_[edges_[best].next].b;
       const bool last = ring.size() == 3;
       cur = edges_[best].prev;
