@@ -1,5 +1,6 @@
 // PCA normals over k nearest neighbours, oriented by propagation over the kNN graph (Hoppe et
-// al.: most-parallel neighbour first, from an extreme point of each component facing outward).
+// al.: most reliable neighbour first, from an extreme point of each component facing outward),
+// repaired by ray-parity votes on closed objects with thin walls.
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/normals.hpp"
 
@@ -158,6 +159,178 @@ class Frontier {
   std::vector<Item> heap_;
 };
 
+/// Outward votes by ray parity (closed objects): a ray from a point along its normal that crosses
+/// the sampled surface an even number of times before leaving the bounding box starts outward.
+/// The surface is approximated by the points' splats (discs across their normals); hits closer
+/// along the ray than half the point's spacing are one crossing. +1: the normal points out (even
+/// ahead, odd behind), -1: it points in, 0: undecided.
+class ParityCaster {
+ public:
+  ParityCaster(std::span<const Vec3> points, const PointGrid& grid, const LocalFrames& f)
+      : points_(points), grid_(grid), f_(f), stamp_(points.size(), 0) {
+    lo_ = hi_ = points[0];
+    for (const Vec3& p : points) {
+      lo_ = lo_.cwiseMin(p);
+      hi_ = hi_.cwiseMax(p);
+    }
+  }
+
+  int vote(std::uint32_t i) {
+    const Vec3 p = points_[i];
+    const Vec3 d = f_.normal[i].cast<double>();
+    const double sp = f_.spacing[i];
+    const double cell = grid_.cell();
+    // The line through p, both ways, until it leaves the bounding box (slab test).
+    double t_ahead = std::numeric_limits<double>::infinity(), t_behind = t_ahead;
+    for (int a = 0; a < 3; ++a) {
+      if (std::abs(d[a]) < 1e-12) continue;
+      const double t_hi = (hi_[a] - p[a]) / d[a], t_lo = (lo_[a] - p[a]) / d[a];
+      t_ahead = std::min(t_ahead, std::max(t_hi, t_lo));
+      t_behind = std::min(t_behind, -std::min(t_hi, t_lo));
+    }
+    ahead_.clear();
+    behind_.clear();
+    ++ray_;
+    const double r_cap = 0.5 * cell;
+    const double t_min = 0.25 * sp;
+    // Samples one cell apart: a splat (radius at most half a cell) hitting the line lies within
+    // one cell of the nearest sample, so the 27 cells around the samples hold every hit.
+    const auto steps_behind = static_cast<std::int64_t>(std::ceil(t_behind / cell));
+    const auto steps_ahead = static_cast<std::int64_t>(std::ceil(t_ahead / cell));
+    for (std::int64_t s = -steps_behind; s <= steps_ahead; ++s) {
+      grid_.for_each_near(p + (static_cast<double>(s) * cell) * d, 1, [&](std::uint32_t j) {
+        if (stamp_[j] == ray_ || j == i) return;
+        stamp_[j] = ray_;
+        const Vec3 nj = f_.normal[j].cast<double>();
+        const double dn = d.dot(nj);
+        if (std::abs(dn) < 0.15) return;  // grazing: the crossing is ill-defined
+        const double t = (points_[j] - p).dot(nj) / dn;
+        if (std::abs(t) < t_min) return;
+        const double r = std::min(0.6 * static_cast<double>(f_.spacing[j]), r_cap);
+        if ((p + t * d - points_[j]).squaredNorm() > r * r) return;
+        (t > 0 ? ahead_ : behind_).push_back(std::abs(t));
+      });
+    }
+    const int a = crossings(ahead_, 0.5 * sp), b = crossings(behind_, 0.5 * sp);
+    if (a % 2 == 0 && b % 2 == 1) return 1;
+    if (a % 2 == 1 && b % 2 == 0) return -1;
+    return 0;
+  }
+
+ private:
+  static int crossings(std::vector<double>& ts, double merge) {
+    std::sort(ts.begin(), ts.end());
+    int c = 0;
+    for (std::size_t q = 0; q < ts.size(); ++q)
+      if (q == 0 || ts[q] - ts[q - 1] > merge) ++c;
+    return c;
+  }
+
+  std::span<const Vec3> points_;
+  const PointGrid& grid_;
+  const LocalFrames& f_;
+  std::vector<std::uint32_t> stamp_;
+  std::uint32_t ray_ = 0;
+  Vec3 lo_, hi_;
+  std::vector<double> ahead_, behind_;
+};
+
+/// Union-find with the relative orientation of each point to its root and the outward votes of
+/// each set (in the root's frame).
+struct OrientedSets {
+  std::vector<std::uint32_t> parent;
+  std::vector<std::uint8_t> flip;  // orientation relative to the parent
+  std::vector<std::int32_t> votes;
+  explicit OrientedSets(std::size_t n) : parent(n), flip(n, 0), votes(n, 0) {
+    std::iota(parent.begin(), parent.end(), 0u);
+  }
+  /// Root of i and i's orientation relative to it (path halving keeps the flips consistent).
+  std::pair<std::uint32_t, std::uint8_t> find(std::uint32_t i) {
+    std::uint8_t fl = 0;
+    while (parent[i] != i) {
+      const std::uint32_t p = parent[i];
+      if (parent[p] != p) {  // halve: i -> grandparent
+        flip[i] ^= flip[p];
+        parent[i] = parent[p];
+      }
+      fl ^= flip[i];
+      i = parent[i];
+    }
+    return {i, fl};
+  }
+};
+
+/// Closed objects with thin walls: the propagation can jump across a wall (the point on the other
+/// side has a parallel normal) and orient a whole region inward. Ray parity gives each point an
+/// outward vote independent of the propagation. When a sample of votes disagrees with the
+/// propagated orientation, the orientation is rebuilt Kruskal-style: kNN edges in order of cost
+/// join sets of points (with their relative orientation), except that two sets whose votes
+/// firmly disagree across the edge stay apart (the edge crosses a wall); each set finally takes
+/// the orientation its votes prefer. Open scans (rays escape both ways) and clouds the
+/// propagation already oriented in agreement with the votes are left unchanged.
+template <class Cost, class Agreement>
+void repair_by_parity(std::span<const Vec3> points, const PointGrid& grid,
+                      const std::vector<std::uint32_t>& knn, std::size_t k, const Cost& cost,
+                      const Agreement& agreement, LocalFrames& f) {
+  const std::size_t n = points.size();
+  if (n < 64 || grid.order().size() != n) return;
+  // Voters: every `stride`-th point (at most about 2000 rays pairs). A first sample of about
+  // 500 of them decides whether the orientation needs the repair at all.
+  constexpr std::size_t kMaxVoters = 2000, kCheckVoters = 500;
+  const std::size_t stride = (n + kMaxVoters - 1) / kMaxVoters;
+  const std::size_t check_stride = stride * ((n / stride + kCheckVoters - 1) / kCheckVoters);
+  ParityCaster caster(points, grid, f);
+  std::vector<std::int8_t> vote(n, 0);
+  std::size_t sampled = 0, decided = 0, against = 0;
+  for (std::size_t i = 0; i < n; i += check_stride) {
+    ++sampled;
+    vote[i] = static_cast<std::int8_t>(caster.vote(static_cast<std::uint32_t>(i)));
+    decided += vote[i] != 0 ? 1 : 0;
+    against += vote[i] < 0 ? 1 : 0;
+  }
+  // Mostly undecided: not a closed surface (rays escape both ways). Few votes against: the
+  // propagation is right (the votes themselves err on a few per cent of the points).
+  if (2 * decided < sampled || against * 20 <= decided) return;
+  for (std::size_t i = 0; i < n; i += stride)
+    if (i % check_stride != 0) vote[i] = static_cast<std::int8_t>(caster.vote(static_cast<std::uint32_t>(i)));
+
+  struct Edge {
+    float cost;
+    std::uint32_t i, j;
+  };
+  std::vector<Edge> edges;
+  edges.reserve(n * k);
+  for (std::uint32_t i = 0; i < n; ++i)
+    for (std::size_t q = 0; q < k; ++q) {
+      const std::uint32_t j = knn[i * k + q];
+      if (j == kNone) continue;
+      edges.push_back({cost(i, j), i, j});
+    }
+  std::sort(edges.begin(), edges.end(), [](const Edge& a, const Edge& b) {
+    return a.cost != b.cost ? a.cost < b.cost : (a.i != b.i ? a.i < b.i : a.j < b.j);
+  });
+  OrientedSets sets(n);
+  for (std::size_t i = 0; i < n; ++i) sets.votes[i] = vote[i];
+  constexpr std::int32_t kFirm = 2;  // votes that make a set's orientation firm
+  for (const Edge& e : edges) {
+    const auto [ri, fi] = sets.find(e.i);
+    const auto [rj, fj] = sets.find(e.j);
+    if (ri == rj) continue;
+    // Orientation of rj's frame in ri's frame.
+    const std::uint8_t x = static_cast<std::uint8_t>(fi ^ fj ^ (agreement(e.i, e.j) < 0 ? 1 : 0));
+    const std::int32_t vi = sets.votes[ri], vj = x ? -sets.votes[rj] : sets.votes[rj];
+    if ((vi >= kFirm && vj <= -kFirm) || (vi <= -kFirm && vj >= kFirm)) continue;
+    sets.parent[rj] = ri;
+    sets.flip[rj] = x;
+    sets.votes[ri] = vi + vj;
+  }
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const auto [r, fl] = sets.find(i);
+    const bool outward_root = sets.votes[r] >= 0;
+    if ((fl != 0) == outward_root) f.normal[i] = -f.normal[i];
+  }
+}
+
 }  // namespace
 
 LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
@@ -298,17 +471,44 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
     return f;
   }
 
-  // Propagation: Prim traversal of the kNN graph (edges i -> its k nearest), most parallel
+  // Propagation: Prim traversal of the kNN graph (edges i -> its k nearest), most reliable
   // edges first, with an indexed heap of frontier vertices (one entry per vertex, decreased when
   // a better edge appears) instead of a queue of every edge pushed.
+  //
+  // Edge rule (after Koenig & Gumhold, "Consistent propagation of normal orientations in point
+  // clouds"): the surface between p_i and p_j is taken as a circular arc tangent to n_i at p_i,
+  // whose normal at p_j is n_i mirrored across the plane bisecting the edge e (unit p_j - p_i):
+  // agreement = n_i.n_j - 2 (n_i.e)(n_j.e), symmetric in i and j. On a flat or smoothly curved
+  // sheet it is n_i.n_j; across a convex or concave sharp edge it stays positive where the
+  // plain product is near zero; across a thin wall (e along the normals) it says "opposite",
+  // which is right for the two sides of a wall. The cost adds the larger off-tangent-plane
+  // component of e: an edge leaving both tangent planes steeply (a diagonal across a wall,
+  // where the arc model fails) is used last.
   Frontier frontier(n);
+  auto agreement = [&](std::uint32_t i, std::uint32_t j) {
+    const Eigen::Vector3f& ni = f.normal[i];
+    const Eigen::Vector3f& nj = f.normal[j];
+    const Eigen::Vector3f e = (points[j] - points[i]).cast<float>();
+    const float len2 = e.squaredNorm();
+    if (!(len2 > 0)) return ni.dot(nj);
+    return ni.dot(nj) - 2.0f * ni.dot(e) * nj.dot(e) / len2;
+  };
+  auto cost = [&](std::uint32_t i, std::uint32_t j) {
+    const Eigen::Vector3f& ni = f.normal[i];
+    const Eigen::Vector3f& nj = f.normal[j];
+    Eigen::Vector3f e = (points[j] - points[i]).cast<float>();
+    const float len = e.norm();
+    if (!(len > 0)) return 1.0f - std::abs(ni.dot(nj));
+    e /= len;
+    const float a = ni.dot(e), b = nj.dot(e);
+    return 1.0f - std::abs(ni.dot(nj) - 2.0f * a * b) + 0.5f * std::max(std::abs(a), std::abs(b));
+  };
   auto visit = [&](std::uint32_t i) {
-    const Eigen::Vector3f ni = f.normal[i];
     const std::uint32_t* row = knn.data() + i * k;
     for (std::size_t q = 0; q < k; ++q) {
       const std::uint32_t j = row[q];
       if (j == kNone || frontier.done(j)) continue;
-      const float c = 1.0f - std::abs(ni.dot(f.normal[j]));
+      const float c = cost(i, j);
       // j is visited when popped: fetch its neighbour row ahead of time.
       __builtin_prefetch(knn.data() + static_cast<std::size_t>(j) * k);
       frontier.offer(c, i, j);
@@ -320,8 +520,7 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
     visit(start);
     while (!frontier.empty()) {
       const Frontier::Item it = frontier.pop();
-
-      if (f.normal[it.from()].dot(f.normal[it.to]) < 0) f.normal[it.to] = -f.normal[it.to];
+      if (agreement(it.from(), it.to) < 0) f.normal[it.to] = -f.normal[it.to];
       visit(it.to);
     }
   };
@@ -340,6 +539,7 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
   std::sort(rest.begin(), rest.end(), higher);
   for (const std::uint32_t start : rest)
     if (!frontier.done(start)) grow_from(start);
+  repair_by_parity(points, grid, knn, k, cost, agreement, f);
   return f;
 }
 

@@ -12,6 +12,7 @@
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/deviation.hpp"
 #include "scanmesh/recon/grid.hpp"
+#include "scanmesh/recon/normals.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "support/data.hpp"
 
@@ -30,6 +31,8 @@ struct Case {
   std::optional<std::size_t> components;
   bool covers_reference;  // the input sees the whole reference (then check ref -> mesh too)
   bool check_usage = true;  // at least 99% of the reduced points become vertices
+  double min_usage = 0.99;  // the fraction checked when check_usage
+  std::optional<long> max_genus = std::nullopt;  // upper bound, where the exact genus is not reached yet
 };
 
 /// Longest edge of each triangle over the spacing around its vertices (distance to the 6th
@@ -107,9 +110,11 @@ void run_case(const Case& c) {
   CHECK(rep.degenerate_triangles == 0);
   CHECK(rep.duplicate_triangles == 0);
   if (c.check_usage)
-    CHECK(static_cast<double>(r.mesh.vertices.size()) >= 0.99 * static_cast<double>(r.reduced_points));
+    CHECK(static_cast<double>(r.mesh.vertices.size()) >=
+          c.min_usage * static_cast<double>(r.reduced_points));
   if (c.loops) CHECK(rep.boundary_loops == *c.loops);
   if (c.genus) CHECK(rep.genus == *c.genus);
+  if (c.max_genus) CHECK(rep.genus <= *c.max_genus);
   if (c.components) CHECK(rep.components == *c.components);
   CHECK(worst_bridge_ratio(r.mesh) < 6.0);
 
@@ -165,12 +170,47 @@ TEST_CASE("real scan: fandisk closes with its sharp edges", "[recon][real][slow]
 // The casting's walls are 0.045-0.07 units thick (measured by ray casting the reference)
 // while its points are 0.028-0.045 apart: both faces of a wall lie within one or two point
 // spacings, below the sampling density at which points alone tell the two sides apart. The
-// front still has to deliver a valid mesh close to the part; the genus 9 the issue asks for is
-// not reached yet (see the issue note), so coverage and topology are not asserted here.
+// normals are oriented right (ray-parity repair, test below), but the front still leaves about
+// 6.5% of the reduced points unmeshed and extra handles (genus 15 for 9; with the reference's
+// own normals it does no better). Asserted: a valid mesh close to the part, one component, and
+// no regression from what is reached.
 TEST_CASE("real scan: casting (thin walls) gives a valid mesh on the surface",
           "[recon][real][slow]") {
   Case c{"casting", {"casting/casting_vertices.xyz"}, "", "casting/casting.obj", std::nullopt,
-         std::nullopt, std::nullopt, false};
-  c.check_usage = false;
+         std::nullopt, 1, false};
+  c.min_usage = 0.93;
+  c.max_genus = 15;
   run_case(c);
+}
+
+// Orientation across thin walls: the point across the wall has a parallel PCA normal, and the
+// plain most-parallel-first propagation oriented 38% of the casting's normals inward. Against
+// the reference's vertex normals, among the normals PCA resolves (|cos| >= 0.7).
+TEST_CASE("real scan: casting normals are oriented outward across thin walls",
+          "[recon][real][slow]") {
+  const auto file = test::shared_file("casting/casting.obj");
+  if (!file) {
+    WARN("SCANMESH_DATA is not set: skipping the casting normals");
+    return;
+  }
+  const recon::Mesh m = meshio::read_mesh(*file);
+  std::vector<Vec3> vn(m.vertices.size(), Vec3::Zero());
+  for (const auto& t : m.triangles) {
+    const Vec3 n = (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]);
+    for (const auto v : t) vn[v] += n;
+  }
+  const recon::SpacingEstimate sp = recon::estimate_spacing(m.vertices);
+  recon::PointGrid grid;
+  grid.build(m.vertices, 2.5 * sp.nearest_mm);
+  const recon::LocalFrames f = recon::estimate_frames(m.vertices, grid);
+  std::size_t resolved = 0, inward = 0;
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    const double d = f.normal[i].cast<double>().dot(vn[i].normalized());
+    if (std::abs(d) < 0.7) continue;
+    ++resolved;
+    if (d < 0) ++inward;
+  }
+  INFO(inward << " of " << resolved << " resolved normals point inward");
+  CHECK(resolved > m.vertices.size() * 8 / 10);
+  CHECK(inward * 100 < resolved);  // measured: 6 of 4447
 }
