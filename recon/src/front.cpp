@@ -39,6 +39,28 @@ class EdgeMap {
     }
     return nullptr;
   }
+  /// Removes the edge if present (backward-shift deletion: no tombstones).
+  void erase(std::uint32_t u, std::uint32_t v) {
+    const std::uint64_t k = key(u, v);
+    std::size_t i = hash(k);
+    while (vals_[i] != kNone && keys_[i] != k)
+      if (++i == cap_) i = 0;
+    if (vals_[i] == kNone) return;
+    std::size_t j = i;
+    while (true) {
+      if (++j == cap_) j = 0;
+      if (vals_[j] == kNone) break;
+      const std::size_t h = hash(keys_[j]);
+      // The entry at j may move back to the hole at i unless its home lies in (i, j].
+      const bool stays = i <= j ? (i < h && h <= j) : (i < h || h <= j);
+      if (stays) continue;
+      keys_[i] = keys_[j];
+      vals_[i] = vals_[j];
+      i = j;
+    }
+    vals_[i] = kNone;
+    --size_;
+  }
   void insert(std::uint32_t u, std::uint32_t v, std::uint32_t val) {
     if ((size_ + 1) * 5 > cap_ * 4) rehash(capacity_for(cap_ * 3 / 2));
     const std::uint64_t k = key(u, v);
@@ -103,6 +125,34 @@ struct VertexTriangles {
     std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
     for (std::uint32_t t = 0; t < tris.size(); ++t)
       for (std::uint32_t v : tris[t]) list[fill[v]++] = t;
+  }
+};
+
+/// The triangles around a few vertices `vs` (ascending), in triangle order: those of vs[c] are
+/// list[start[c]] .. list[start[c + 1] - 1]. One pass over the triangles; `marked` is an
+/// all-zero scratch array with one entry per vertex, left all zero.
+struct SomeVertexTriangles {
+  std::vector<std::uint32_t> start, list;
+
+  SomeVertexTriangles(const std::vector<std::uint32_t>& vs, const std::vector<Triangle>& tris,
+                      std::vector<std::uint8_t>& marked) {
+    for (std::uint32_t v : vs) marked[v] = 1;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> corners;  // (vertex, triangle)
+    for (std::uint32_t t = 0; t < tris.size(); ++t)
+      for (std::uint32_t v : tris[t])
+        if (marked[v]) corners.emplace_back(v, t);
+    for (std::uint32_t v : vs) marked[v] = 0;
+    std::sort(corners.begin(), corners.end());
+    start.assign(vs.size() + 1, 0);
+    list.resize(corners.size());
+    std::size_t k = 0;
+    for (std::size_t c = 0; c < vs.size(); ++c) {
+      while (k < corners.size() && corners[k].first == vs[c]) {
+        list[k] = corners[k].second;
+        ++k;
+      }
+      start[c + 1] = static_cast<std::uint32_t>(k);
+    }
   }
 };
 
@@ -289,6 +339,9 @@ class Builder {
   std::size_t repair_fans(bool thorough = false);
   void orient_components();
   void rebuild_front();
+  /// Replaces the front around the corners of `removed` (triangles repair_fans dropped).
+  void update_front_after_removal(const std::vector<Triangle>& removed,
+                                  std::vector<std::uint8_t>& marked);
   void split_flat_triangle_holes();
 
   static constexpr double kMaxSparsity = 2.5;
@@ -744,6 +797,7 @@ std::size_t Builder::repair_fans(bool thorough) {
     if (check.empty()) return 0;
   }
   std::vector<std::uint8_t> marked(thorough ? 0 : n, 0);
+  std::vector<Triangle> removed_tris;  // targeted mode: the front is updated around them
   std::vector<int> fan;
   std::vector<std::uint32_t> size;
   for (int round = 0; round < 8; ++round) {
@@ -755,23 +809,9 @@ std::size_t Builder::repair_fans(bool thorough) {
       start = std::move(adj.start);
       vt = std::move(adj.list);
     } else {
-      for (std::uint32_t v : check) marked[v] = 1;
-      std::vector<std::pair<std::uint32_t, std::uint32_t>> corners;  // (vertex, triangle)
-      for (std::uint32_t t = 0; t < tris_.size(); ++t)
-        for (std::uint32_t v : tris_[t])
-          if (marked[v]) corners.emplace_back(v, t);
-      for (std::uint32_t v : check) marked[v] = 0;
-      std::sort(corners.begin(), corners.end());
-      start.assign(check.size() + 1, 0);
-      vt.resize(corners.size());
-      std::size_t k = 0;
-      for (std::size_t c = 0; c < check.size(); ++c) {
-        while (k < corners.size() && corners[k].first == check[c]) {
-          vt[k] = corners[k].second;
-          ++k;
-        }
-        start[c + 1] = static_cast<std::uint32_t>(k);
-      }
+      SomeVertexTriangles adj(check, tris_, marked);
+      start = std::move(adj.start);
+      vt = std::move(adj.list);
     }
     const std::size_t count = thorough ? n : check.size();
     std::vector<std::uint8_t> dead(tris_.size(), 0);
@@ -812,8 +852,10 @@ std::size_t Builder::repair_fans(bool thorough) {
         if (static_cast<std::size_t>(find(static_cast<int>(i))) != keep && !dead[vt[b0 + i]]) {
           dead[vt[b0 + i]] = 1;
           ++removed;
-          if (!thorough)
+          if (!thorough) {
             for (std::uint32_t x : tris_[vt[b0 + i]]) next_check.push_back(x);
+            removed_tris.push_back(tris_[vt[b0 + i]]);
+          }
         }
     }
     if (removed == 0) break;
@@ -823,14 +865,115 @@ std::size_t Builder::repair_fans(bool thorough) {
       if (!dead[t]) tris_[w++] = tris_[t];
     tris_.resize(w);
     res_.removed_fan_triangles += removed;
-    front_stale_ = true;  // triangles went away behind the front's back
+    if (thorough) front_stale_ = true;  // triangles went away behind the front's back
     if (!thorough) {
       std::sort(next_check.begin(), next_check.end());
       next_check.erase(std::unique(next_check.begin(), next_check.end()), next_check.end());
       check.swap(next_check);
     }
   }
+  if (!removed_tris.empty()) update_front_after_removal(removed_tris, marked);
   return total;
+}
+
+void Builder::update_front_after_removal(const std::vector<Triangle>& removed,
+                                         std::vector<std::uint8_t>& marked) {
+  // Only the corners of the removed triangles changed: their front edges (in and out) are
+  // replaced by the boundary edges of their remaining triangles, and the edge table, valences
+  // and states are updated there. O(triangles) for one pass collecting their triangles, instead
+  // of rebuilding the whole front and edge table.
+  std::vector<std::uint32_t> touched;
+  for (const Triangle& t : removed)
+    for (std::uint32_t v : t) touched.push_back(v);
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  auto in_touched = [&](std::uint32_t v) {
+    return std::binary_search(touched.begin(), touched.end(), v);
+  };
+  const SomeVertexTriangles adj(touched, tris_, marked);
+  // Old front edges into and out of touched vertices go; their untouched neighbours along the
+  // loops are relinked below.
+  std::vector<std::uint32_t> dead, relink;
+  for (std::uint32_t v : touched)
+    for (std::uint32_t o = head_out_[v]; o != kNone; o = edges_[o].next_out) {
+      dead.push_back(o);
+      dead.push_back(edges_[o].prev);
+    }
+  std::sort(dead.begin(), dead.end());
+  dead.erase(std::unique(dead.begin(), dead.end()), dead.end());
+  for (std::uint32_t d : dead) {
+    const std::uint32_t pv = edges_[d].prev;
+    if (!std::binary_search(dead.begin(), dead.end(), pv)) relink.push_back(pv);
+  }
+  for (std::uint32_t d : dead) kill_edge(d);
+  // New boundary edges and valences from the remaining triangles of each touched vertex.
+  std::vector<std::uint32_t> created;
+  std::vector<std::pair<std::uint32_t, int>> nbrs;  // (neighbour, triangles using the edge)
+  for (std::size_t c = 0; c < touched.size(); ++c) {
+    const std::uint32_t u = touched[c];
+    nbrs.clear();
+    for (std::uint32_t s = adj.start[c]; s < adj.start[c + 1]; ++s) {
+      const Triangle& t = tris_[adj.list[s]];
+      const std::size_t k = t[0] == u ? 0 : (t[1] == u ? 1 : 2);
+      for (std::uint32_t w : {t[(k + 1) % 3], t[(k + 2) % 3]}) {
+        auto it = std::find_if(nbrs.begin(), nbrs.end(), [&](const auto& q) { return q.first == w; });
+        if (it == nbrs.end()) nbrs.emplace_back(w, 1);
+        else ++it->second;
+      }
+    }
+    valence_[u] = static_cast<std::uint8_t>(std::min<std::size_t>(nbrs.size(), 255));
+    for (std::uint32_t s = adj.start[c]; s < adj.start[c + 1]; ++s) {
+      const Triangle& t = tris_[adj.list[s]];
+      const std::size_t k = t[0] == u ? 0 : (t[1] == u ? 1 : 2);
+      const std::uint32_t next = t[(k + 1) % 3], prev = t[(k + 2) % 3];
+      for (std::uint32_t w : {next, prev}) {
+        if (in_touched(w) && w < u) continue;  // the edge is handled from its smaller end
+        const int uses = std::find_if(nbrs.begin(), nbrs.end(), [&](const auto& q) { return q.first == w; })->second;
+        if (uses >= 2) {
+          edges_map_.insert(u, w, kInterior);
+        } else if (w == next) {  // the front runs along its triangle: u -> next
+          created.push_back(new_edge(u, next, prev));
+        } else {  // prev -> u
+          created.push_back(new_edge(prev, u, next));
+        }
+      }
+    }
+  }
+  // Edges of removed triangles left without any triangle leave the table.
+  for (const Triangle& t : removed)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint32_t x = t[k], y = t[(k + 1) % 3];
+      const auto c = static_cast<std::size_t>(
+          std::lower_bound(touched.begin(), touched.end(), x) - touched.begin());
+      bool used = false;
+      for (std::uint32_t s = adj.start[c]; s < adj.start[c + 1] && !used; ++s) {
+        const Triangle& o = tris_[adj.list[s]];
+        used = o[0] == y || o[1] == y || o[2] == y;
+      }
+      if (!used) edges_map_.erase(x, y);
+    }
+  // Link the loops: every vertex has a single fan now, hence at most one outgoing edge.
+  for (std::uint32_t id : created) relink.push_back(id);
+  for (std::uint32_t id : relink) {
+    FrontEdge& e = edges_[id];
+    if (!e.alive) continue;
+    const std::uint32_t nx = head_out_[e.b];
+    if (nx == kNone) {  // inconsistent (should not happen): rebuild everything
+      front_stale_ = true;
+      return;
+    }
+    e.next = nx;
+    edges_[nx].prev = id;
+  }
+  for (std::uint32_t v : touched) {
+    if (valence_[v] == 0) state_[v] = VertexState::kFree;  // its triangles are gone: free again
+    else update_state(v);
+  }
+  // Every front edge is evaluated again, as after a rebuild: the removal may have unblocked
+  // edges elsewhere on the loops (the front is short by now: boundaries and stuck edges).
+  for (std::uint32_t id = 0; id < edges_.size(); ++id)
+    if (edges_[id].alive) push(id);
+  if (check_every_step_) check_front();
 }
 
 void Builder::split_flat_triangle_holes() {
@@ -1022,14 +1165,14 @@ FrontResult Builder::run() {
   fill_small_loops();
   // Dropping fans opens small gaps: rebuild the front from the mesh and let it close them.
   for (int round = 0; round < 2 && repair_fans() > 0; ++round) {
-    rebuild_front();
+    if (front_stale_) rebuild_front();
     grow();
     fill_small_loops();
   }
   // The last word: every vertex keeps a single fan; gaps this opens are closed by ear clipping
   // only.
   for (int round = 0; round < 3 && repair_fans() > 0; ++round) {
-    rebuild_front();
+    if (front_stale_) rebuild_front();
     fill_small_loops();
   }
   split_flat_triangle_holes();
