@@ -214,6 +214,7 @@ class Builder {
     head_out_.assign(n, kNone);
     valence_.assign(n, 0);
     tris_.reserve(n * 2 + 16);
+    cos_normal_ = std::cos(opt.max_normal_deviation_deg * kPi / 180);
     if (n > 0) {
       std::vector<float> sp = frames.spacing;
       auto mid = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2);
@@ -371,6 +372,7 @@ class Builder {
   // scratch buffers reused by every query (no allocation on the hot path once warmed up)
   std::vector<Candidate> cand_;
   std::vector<std::uint32_t> near_front_;
+  double cos_normal_ = 1.0;  // cosine of max_normal_deviation_deg
   FrontResult res_;
 };
 
@@ -460,17 +462,19 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   // material: a membrane across a sharp corner, the start of a small tunnel. (Unsigned, this
   // rule let the demo part come out with genus 4 instead of 2.) A point whose orientation the
   // propagation got wrong (thin walls) stays unmeshed and is reported as an outlier.
-  if (f_.normal[p].cast<double>().dot(n1) < std::cos(opt_.max_normal_deviation_deg * kPi / 180))
-    return false;
-  // Existing edges: only the adjacent front edges may be closed.
+  if (f_.normal[p].cast<double>().dot(n1) < cos_normal_) return false;
+  // Existing edges: only the adjacent front edges may be closed. A free point has no edges (no
+  // table look-up: on large scans each one is a cache miss).
   bool close_a = false, close_b = false;
-  if (const std::uint32_t* v = edges_map_.find(a, p)) {
-    if (*v != e.prev || edges_[*v].a != p) return false;
-    close_a = true;
-  }
-  if (const std::uint32_t* v = edges_map_.find(p, b)) {
-    if (*v != e.next || edges_[*v].b != p) return false;
-    close_b = true;
+  if (state_[p] != VertexState::kFree) {
+    if (const std::uint32_t* v = edges_map_.find(a, p)) {
+      if (*v != e.prev || edges_[*v].a != p) return false;
+      close_a = true;
+    }
+    if (const std::uint32_t* v = edges_map_.find(p, b)) {
+      if (*v != e.next || edges_[*v].b != p) return false;
+      close_b = true;
+    }
   }
   if (!close_a && valence_[a] >= opt_.max_valence) return false;
   if (!close_b && valence_[b] >= opt_.max_valence) return false;
@@ -606,9 +610,9 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
   const FrontEdge e = edges_[eid];  // copy: the pool may grow below
   const std::uint32_t a = e.a, b = e.b, ep = e.prev, en = e.next;
   tris_.push_back({b, a, p});
-  const std::uint32_t* va = edges_map_.find(a, p);
-  const std::uint32_t* vb = edges_map_.find(p, b);
-  const bool close_a = va != nullptr, close_b = vb != nullptr;
+  const bool p_free = state_[p] == VertexState::kFree;  // a free point has no edges yet
+  const bool close_a = !p_free && edges_map_.find(a, p) != nullptr;
+  const bool close_b = !p_free && edges_map_.find(p, b) != nullptr;
   edges_map_.insert(a, b, kInterior);
   std::uint32_t touched[4];
   std::size_t nt = 0;
