@@ -331,6 +331,10 @@ class Builder {
   bool try_seed(std::uint32_t s);
   bool process(std::uint32_t eid, const Mode& mode);
   bool valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius);
+  [[nodiscard]] bool feature_fits(std::uint32_t a, std::uint32_t b, std::uint32_t p,
+                                  const Vec3& n1) const;
+  [[nodiscard]] bool closes_empty_triangle(std::uint32_t u, std::uint32_t w,
+                                           std::uint32_t third);
   void add_triangle(std::uint32_t eid, std::uint32_t p);
   void grow();
   void fill_small_loops();
@@ -373,6 +377,7 @@ class Builder {
   std::vector<Candidate> cand_;
   std::vector<std::uint32_t> near_front_;
   double cos_normal_ = 1.0;  // cosine of max_normal_deviation_deg
+  bool relaxed_pass_ = false;  // process() runs with the relaxed (second chance) mode
   FrontResult res_;
 };
 
@@ -452,6 +457,42 @@ bool Builder::try_seed(std::uint32_t s) {
   return false;
 }
 
+/// Exception to the signed normal rule, second chance only: p on a sharp feature (non-planar
+/// neighbourhood) has the PCA normal of one of the faces meeting there, so the triangles of the
+/// other face fail the rule at p and the front bridges the feature row (a bevel, the row left
+/// unmeshed). Such a triangle is accepted when it agrees with the normals of the edge's own end
+/// points (the face the front is on) and does not face against p's normal. A blanket wider
+/// bound for feature points (80 degrees, or any neighbour's normal) in the first pass meshed
+/// more of the casting but raised its genus (15 -> 29-36): the first pass must keep the rule.
+bool Builder::feature_fits(std::uint32_t a, std::uint32_t b, std::uint32_t p, const Vec3& n1) const {
+  constexpr float kFeatureFlatness = 0.01f;  // flatness above which a neighbourhood is not planar
+  constexpr double kAgainst = -0.2;          // cosine: p's normal may not face against n1
+  return f_.flatness[p] > kFeatureFlatness && f_.normal[p].cast<double>().dot(n1) >= kAgainst &&
+         f_.normal[a].cast<double>().dot(n1) >= cos_normal_ &&
+         f_.normal[b].cast<double>().dot(n1) >= cos_normal_;
+}
+
+/// Whether the new edge u-w would close a 3-cycle u-w-x (x != third) through an edge that
+/// already has two triangles: the cycle can then never become a face, and an edge cycle of three
+/// that is not a face is a tunnel (or a pinch) through the surface. Used when closing gaps by
+/// ear clipping, where such ears wrap around the thin walls of CAD parts.
+bool Builder::closes_empty_triangle(std::uint32_t u, std::uint32_t w, std::uint32_t third) {
+  const double reach = opt_.relaxed_radius_factor * 1.5 * max_spacing_;  // longest edge possible
+  const std::vector<std::uint32_t>& order = grid_.order();
+  bool found = false;
+  grid_.for_each_range_within(p_[u], reach, [&](std::uint32_t first, std::uint32_t last) {
+    for (std::uint32_t s = first; s < last && !found; ++s) {
+      const std::uint32_t x = order[s];
+      if (x == u || x == w || x == third || state_[x] == VertexState::kFree) continue;
+      const std::uint32_t* ux = edges_map_.find(u, x);
+      if (ux == nullptr) continue;
+      const std::uint32_t* wx = edges_map_.find(w, x);
+      if (wx != nullptr && (*ux == kInterior || *wx == kInterior)) found = true;
+    }
+  });
+  return found;
+}
+
 bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius) {
   const FrontEdge& e = edges_[eid];
   const std::uint32_t a = e.a, b = e.b;
@@ -462,7 +503,8 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   // material: a membrane across a sharp corner, the start of a small tunnel. (Unsigned, this
   // rule let the demo part come out with genus 4 instead of 2.) A point whose orientation the
   // propagation got wrong (thin walls) stays unmeshed and is reported as an outlier.
-  if (f_.normal[p].cast<double>().dot(n1) < cos_normal_) return false;
+  if (f_.normal[p].cast<double>().dot(n1) < cos_normal_ && !(relaxed_pass_ && feature_fits(a, b, p, n1)))
+    return false;
   // Existing edges: only the adjacent front edges may be closed. A free point has no edges (no
   // table look-up: on large scans each one is a cache miss).
   bool close_a = false, close_b = false;
@@ -717,7 +759,10 @@ void Builder::grow() {
     for (std::uint32_t id : batch) {
       if (!edges_[id].alive) continue;
       const std::size_t before = tris_.size();
-      if (process(id, relaxed)) res_.relaxed_triangles += tris_.size() - before;
+      relaxed_pass_ = true;  // enables feature_fits (valid)
+      const bool added = process(id, relaxed);
+      relaxed_pass_ = false;
+      if (added) res_.relaxed_triangles += tris_.size() - before;
     }
   }
 }
@@ -766,6 +811,7 @@ void Builder::fill_small_loops() {
         const std::uint32_t c = edges_[fe.next].b;
         if (ring.size() > 3 && edges_map_.find(fe.a, c) != nullptr) continue;
         if (min_angle_cos(fe.a, fe.b, c) > cos_fill_angle) continue;  // no slivers
+        if (ring.size() > 3 && closes_empty_triangle(fe.a, c, fe.b)) continue;  // no tunnel
         const double ang = front_turn_at_end(r);
         if (ang < best_angle) {
           best_angle = ang;
