@@ -597,19 +597,14 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   cand_.clear();
   near_front_.clear();
   ++res_.edge_evaluations;
-  auto visit = [&](std::uint32_t j) {
-    ++res_.points_scanned;
-    const VertexState st = state_[j];
-    if (st == VertexState::kFront) near_front_.push_back(j);
-    if (j == a || j == b || j == x) return;
-    if (st != VertexState::kFree && st != VertexState::kFront) return;
+  // A point within reach of both end points: the full candidate test.
+  auto consider = [&](std::uint32_t j, double la2, double lb2) {
     const Vec3& pj = p_[j];
     // A sparser candidate may reach a little further, but never more than 1.5x the edge's own
     // spacing: an isolated point must not pull long triangles across a gap.
     const double r = std::min(gather, mode.radius_factor * std::clamp<double>(spacing(j), base, 1.5 * base));
-    const Vec3 ua = pj - pa, ub = pj - pb;
-    const double la2 = ua.squaredNorm(), lb2 = ub.squaredNorm();
     if (la2 > r * r || lb2 > r * r || la2 == 0 || lb2 == 0) return;
+    const Vec3 ua = pj - pa, ub = pj - pb;
     // new triangle (b, a, j)
     Vec3 n1 = (pa - pb).cross(pj - pb);
     const double nl = n1.norm();
@@ -628,9 +623,30 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
     const double score = std::acos(std::clamp(cos_j, -1.0, 1.0)) + 0.5 * n1.dot(n0);
     cand_.push_back({score, j});
   };
-  const std::vector<std::uint32_t>& order = grid_.order();
+  // The scan: every point in the cells around the edge. Most are rejected by the first test
+  // (beyond the largest radius any candidate may use), so it is written on plain coordinates
+  // and reads nothing else before it.
+  const double gather2 = gather * gather;
+  const double ax = pa.x(), ay = pa.y(), az = pa.z(), bx = pb.x(), by = pb.y(), bz = pb.z();
+  const std::uint32_t* order = grid_.order().data();
+  const VertexState* state = state_.data();
+  const Vec3* pts = p_.data();
   grid_.for_each_range_within(mid, gather + 0.5 * lab, [&](std::uint32_t first, std::uint32_t last) {
-    for (std::uint32_t slot = first; slot < last; ++slot) visit(order[slot]);
+    res_.points_scanned += last - first;
+    for (std::uint32_t slot = first; slot < last; ++slot) {
+      const std::uint32_t j = order[slot];
+      const VertexState st = state[j];
+      if (st == VertexState::kFront) near_front_.push_back(j);
+      if (st != VertexState::kFree && st != VertexState::kFront) continue;
+      const double* q = pts[j].data();
+      const double uax = q[0] - ax, uay = q[1] - ay, uaz = q[2] - az;
+      const double la2 = uax * uax + uay * uay + uaz * uaz;
+      if (la2 > gather2) continue;
+      const double ubx = q[0] - bx, uby = q[1] - by, ubz = q[2] - bz;
+      const double lb2 = ubx * ubx + uby * uby + ubz * ubz;
+      if (lb2 > gather2 || j == a || j == b || j == x) continue;
+      consider(j, la2, lb2);
+    }
   });
   if (cand_.empty()) return false;
   std::sort(cand_.begin(), cand_.end(), [](const Candidate& l, const Candidate& r) {
