@@ -116,14 +116,16 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     }
     grid.build(reduced, 2.5 * std::max(typical, 1e-12));
     const LocalFrames frames = estimate_frames(reduced, grid, options.normals);
-    // Re-grid with the measured local spacing so one ring covers the candidate radius.
+    // Re-grid with the measured local spacing so that one ring of cells covers the front's scan
+    // radius (1.5 x radius_factor spacings plus half an edge): 9 rows a query, where cells half
+    // that size made the row look-ups cost more than the extra points the larger cells bring.
     {
       std::vector<float> sp = frames.spacing;
       std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2),
                        sp.end());
       const double median = sp[sp.size() / 2];
       if (median > 0)
-        grid.build(reduced, 0.5 * (options.front.radius_factor * 1.5 + 0.6) * median);
+        grid.build(reduced, (options.front.radius_factor * 1.5 + 0.6) * median);
     }
     res.reduced_points = reduced.size();
 

@@ -62,7 +62,7 @@ struct FrontResult {
 };
 
 /// Triangulates `points` (with `frames` from estimate_frames and `grid` indexing the points
-/// with a cell of about 2.5x the median local spacing). Deterministic.
+/// with a cell of about 3.6x the median local spacing). Deterministic.
 FrontResult advance_front(std::span<const Vec3> points, const LocalFrames& frames,
                           const PointGrid& grid, const FrontOptions& options = {});
 
