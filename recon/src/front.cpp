@@ -491,6 +491,9 @@ bool Builder::closes_empty_triangle(std::uint32_t u, std::uint32_t w, std::uint3
     for (std::uint32_t s = first; s < last && !found; ++s) {
       const std::uint32_t x = order[s];
       if (x == u || x == w || x == third || state_[x] == VertexState::kFree) continue;
+      // x joined to the ear's middle vertex too: the cycle u-w-x then only rings that vertex
+      // (its fan closes), it is no tunnel.
+      if (edges_map_.find(third, x) != nullptr) continue;
       const std::uint32_t* ux = edges_map_.find(u, x);
       if (ux == nullptr) continue;
       const std::uint32_t* wx = edges_map_.find(w, x);
