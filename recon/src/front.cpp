@@ -1053,44 +1053,62 @@ void Builder::update_front_after_removal(const std::vector<Triangle>& removed,
 }
 
 void Builder::split_flat_triangle_holes() {
-  // A 3-edge hole whose corners are collinear (points on a straight feature line) cannot take a
-  // triangle of its own; the triangle across its long edge is split at the middle corner.
+  // A small hole whose corners are all collinear (points on a straight feature line: a slit,
+  // every ear a sliver) cannot take triangles of its own. The triangle behind each of its edges
+  // that spans other corners of the hole is split at them (a fan from its third vertex), so the
+  // two sides of the slit meet edge to edge.
   if (front_stale_) rebuild_front();
+  const double cos_flat = std::cos(0.05 * kPi / 180);
+  std::vector<std::uint32_t> loop;
+  std::vector<std::pair<double, std::uint32_t>> inner;
+  std::vector<std::uint8_t> seen(edges_.size(), 0);
   for (std::uint32_t id = 0; id < edges_.size(); ++id) {
-    const FrontEdge& e0 = edges_[id];
-    if (!e0.alive) continue;
-    const FrontEdge& e1 = edges_[e0.next];
-    const FrontEdge& e2 = edges_[e1.next];
-    if (e2.next != id || min_angle_cos(e0.a, e0.b, e1.b) <= std::cos(0.05 * kPi / 180)) continue;
-    // The middle corner is the one with the widest angle; the long edge is the other one.
-    const std::uint32_t loop[3] = {id, e0.next, e1.next};
-    std::uint32_t mid = kNone, long_edge = kNone;
-    for (int k = 0; k < 3; ++k) {
-      const FrontEdge& in = edges_[loop[k]];
-      const FrontEdge& out = edges_[in.next];
-      const Vec3 u = p_[in.a] - p_[in.b], w = p_[out.b] - p_[out.a];
-      if (u.dot(w) < 0) {  // angle at in.b above 90 degrees: the middle corner
-        mid = in.b;
-        long_edge = out.next;
-      }
+    if (!edges_[id].alive || seen[id]) continue;
+    loop.clear();
+    std::uint32_t e = id;
+    do {
+      loop.push_back(e);
+      seen[e] = 1;
+      e = edges_[e].next;
+    } while (e != id && loop.size() <= opt_.fill_max_edges);
+    if (e != id || loop.size() < 3 || loop.size() > opt_.fill_max_edges) continue;
+    bool flat = true;
+    for (std::uint32_t r : loop) {
+      const FrontEdge& fe = edges_[r];
+      flat = flat && min_angle_cos(fe.a, fe.b, edges_[fe.next].b) > cos_flat;
     }
-    if (mid == kNone) continue;
-    const FrontEdge& le = edges_[long_edge];  // z -> x, triangle (z, x, o) behind it
-    const std::uint32_t z = le.a, x = le.b, o = le.opp;
-    if (o == mid || edges_map_.find(mid, o) != nullptr) continue;  // the split edge must be new
-    for (Triangle& t : tris_) {
-      for (int r = 0; r < 3; ++r) {
-        if (t[static_cast<std::size_t>(r)] == z && t[static_cast<std::size_t>((r + 1) % 3)] == x &&
-            t[static_cast<std::size_t>((r + 2) % 3)] == o) {
-          t = {z, mid, o};
-          tris_.push_back({mid, x, o});
-          edges_map_.insert(mid, o, kInterior);
-          ++res_.filled_gaps;
-          goto next_loop;
-        }
+    if (!flat) continue;
+    bool split = false;
+    for (std::uint32_t r : loop) {
+      const std::uint32_t z = edges_[r].a, x = edges_[r].b, o = edges_[r].opp;
+      const Vec3 d = p_[x] - p_[z];
+      const double dd = d.squaredNorm();
+      if (!(dd > 0)) continue;
+      inner.clear();
+      for (std::uint32_t q : loop) {
+        const std::uint32_t m = edges_[q].a;
+        if (m == z || m == x || m == o) continue;
+        const double t = (p_[m] - p_[z]).dot(d) / dd;
+        if (t > 0 && t < 1) inner.emplace_back(t, m);
       }
+      if (inner.empty()) continue;
+      bool fresh = true;  // the split edges must be new
+      for (const auto& im : inner) fresh = fresh && edges_map_.find(im.second, o) == nullptr;
+      if (!fresh) continue;
+      std::sort(inner.begin(), inner.end());
+      std::size_t at = tris_.size();  // the triangle (z, x, o), in any rotation
+      for (std::size_t t = 0; t < tris_.size() && at == tris_.size(); ++t)
+        for (std::size_t k = 0; k < 3; ++k)
+          if (tris_[t][k] == z && tris_[t][(k + 1) % 3] == x && tris_[t][(k + 2) % 3] == o) at = t;
+      if (at == tris_.size()) continue;
+      tris_[at] = {z, inner.front().second, o};
+      for (std::size_t k = 1; k < inner.size(); ++k)
+        tris_.push_back({inner[k - 1].second, inner[k].second, o});
+      tris_.push_back({inner.back().second, x, o});
+      for (const auto& im : inner) edges_map_.insert(im.second, o, kInterior);
+      split = true;
     }
-  next_loop:;
+    if (split) ++res_.filled_gaps;
   }
 }
 
