@@ -14,6 +14,7 @@
 #include <cassert>
 #include <cmath>
 #include <numbers>
+#include <deque>
 #include <queue>
 
 namespace scanmesh::recon {
@@ -168,8 +169,11 @@ struct FrontEdge {
 struct QueueItem {
   float key;
   std::uint32_t edge, stamp;
+  /// Smallest key first, then lowest edge id, then newest stamp: a total order, so the run
+  /// does not depend on how the heap breaks ties.
   bool operator>(const QueueItem& o) const {
-    return key != o.key ? key > o.key : edge > o.edge;
+    if (key != o.key) return key > o.key;
+    return edge != o.edge ? edge > o.edge : stamp < o.stamp;
   }
 };
 
@@ -248,8 +252,7 @@ class Builder {
     // Known quirk, kept on purpose for now: the stamp restarts at 0 in a reused slot, so a queue
     // entry left by the slot's previous edge can match the new edge and run it ahead of its
     // turn (about a third of all evaluations on the bunny). Carrying the stamp on (the clean
-    // fix, which also lets the wave be a plain queue: -9% instructions) was measured worse:
-    // bun000 98.9% used instead of 99.1%, the merged scans genus 1, the casting genus 21; a
+    // fix) was measured worse: bun000 98.9% used instead of 99.2%, the casting genus 21; a
     // strict retry or a depth-first wave did not recover it. The early runs of new edges act
     // as an ordering heuristic that a principled order has to match before this is changed.
     e = FrontEdge{a, b, opp, kNone, kNone, head_out_[a], 0, true};
@@ -311,8 +314,11 @@ class Builder {
     if (!e.alive) return;
     ++e.stamp;
     const double turn = std::min(front_turn_at_end(eid), front_turn_at_end(e.prev));
-    const float key = turn < ear_turn_ ? static_cast<float>(turn) : static_cast<float>(1000.0 + seq_++);
-    queue_.push(QueueItem{key, eid, e.stamp});
+    if (turn < ear_turn_) {
+      ears_.push(QueueItem{static_cast<float>(turn), eid, e.stamp});
+    } else {
+      wave_.push_back(QueueItem{0.0f, eid, e.stamp});
+    }
   }
 
   /// Debug check of the front invariants: loops closed and linked both ways, out-lists and the
@@ -371,9 +377,11 @@ class Builder {
   std::vector<std::uint32_t> free_edges_;
   EdgeMap edges_map_;
   std::vector<Triangle> tris_;
-  std::priority_queue<QueueItem, std::vector<QueueItem>, std::greater<>> queue_;
+  // The order of work: edges with a small angle at either end first (ears, smallest angle
+  // first: a heap), then the others first in, first out (the wave: a plain queue).
+  std::priority_queue<QueueItem, std::vector<QueueItem>, std::greater<>> ears_;
+  std::deque<QueueItem> wave_;
   std::vector<std::uint32_t> deferred_;
-  double seq_ = 0;
   bool front_stale_ = false;  // repair_fans removed triangles; rebuild_front() not yet called
 #ifndef NDEBUG
   bool check_every_step_ = true;
@@ -772,9 +780,15 @@ void Builder::grow() {
   const Mode relaxed{opt_.relaxed_radius_factor, std::cos(opt_.relaxed_min_angle_deg * deg),
                      std::cos((180.0 - opt_.relaxed_min_dihedral_deg) * deg)};
   while (true) {
-    while (!queue_.empty()) {
-      const QueueItem it = queue_.top();
-      queue_.pop();
+    while (!ears_.empty() || !wave_.empty()) {
+      QueueItem it;
+      if (!ears_.empty()) {
+        it = ears_.top();
+        ears_.pop();
+      } else {
+        it = wave_.front();
+        wave_.pop_front();
+      }
       const FrontEdge& e = edges_[it.edge];
       if (!e.alive || e.stamp != it.stamp) continue;
       if (!process(it.edge, strict)) deferred_.push_back(it.edge);
@@ -1120,7 +1134,8 @@ void Builder::rebuild_front() {
   edges_map_ = EdgeMap(0);  // release the old table before the new one is built
   std::fill(head_out_.begin(), head_out_.end(), kNone);
   std::fill(valence_.begin(), valence_.end(), std::uint8_t{0});
-  while (!queue_.empty()) queue_.pop();
+  while (!ears_.empty()) ears_.pop();
+  wave_.clear();
   deferred_.clear();
   // Vertex -> triangles (CSR, 4 bytes per corner): each undirected edge {u, v}, u < v, is
   // found from u's triangles, so no array of all half-edges is ever built (it was the peak of
