@@ -312,8 +312,34 @@ class Builder {
   void push(std::uint32_t eid) {
     FrontEdge& e = edges_[eid];
     if (!e.alive) return;
-    ++e.stamp;
     const double turn = std::min(front_turn_at_end(eid), front_turn_at_end(e.prev));
+    enqueue(eid, turn);
+  }
+  /// push() for the edges a new triangle touched: neighbours share end points, so each end
+  /// turn is computed once (an edge's key needs the turns at both of its ends).
+  void push_touched(const std::uint32_t* ids, std::size_t count) {
+    std::uint32_t memo_id[8];
+    double memo_turn[8];
+    std::size_t memo = 0;
+    auto turn_at_end = [&](std::uint32_t id) {
+      for (std::size_t k = 0; k < memo; ++k)
+        if (memo_id[k] == id) return memo_turn[k];
+      const double t = front_turn_at_end(id);
+      if (memo < 8) {
+        memo_id[memo] = id;
+        memo_turn[memo++] = t;
+      }
+      return t;
+    };
+    for (std::size_t i = 0; i < count; ++i) {
+      const FrontEdge& e = edges_[ids[i]];
+      if (!e.alive) continue;
+      enqueue(ids[i], std::min(turn_at_end(ids[i]), turn_at_end(e.prev)));
+    }
+  }
+  void enqueue(std::uint32_t eid, double turn) {
+    FrontEdge& e = edges_[eid];
+    ++e.stamp;
     if (turn < ear_turn_) {
       ears_.push(QueueItem{static_cast<float>(turn), eid, e.stamp});
     } else {
@@ -769,7 +795,7 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
   update_state(a);
   update_state(b);
   update_state(p);
-  for (std::size_t i = 0; i < nt; ++i) push(touched[i]);
+  push_touched(touched, nt);
   if (check_every_step_) check_front();
 }
 
