@@ -309,14 +309,9 @@ class Builder {
     const Vec3 nb = vnormal(e.b, tri_normal(e.a, e.b, e.opp));
     return ccw_turn(p_[e.a] - p_[e.b], p_[n.b] - p_[e.b], nb);
   }
-  void push(std::uint32_t eid) {
-    FrontEdge& e = edges_[eid];
-    if (!e.alive) return;
-    const double turn = std::min(front_turn_at_end(eid), front_turn_at_end(e.prev));
-    enqueue(eid, turn);
-  }
-  /// push() for the edges a new triangle touched: neighbours share end points, so each end
-  /// turn is computed once (an edge's key needs the turns at both of its ends).
+  void push(std::uint32_t eid) { push_touched(&eid, 1); }
+  /// Queues several edges (those a new triangle touched): neighbours share end points, so each
+  /// end turn is computed once (an edge's key needs the turns at both of its ends).
   void push_touched(const std::uint32_t* ids, std::size_t count) {
     std::uint32_t memo_id[8];
     double memo_turn[8];
@@ -525,13 +520,13 @@ bool Builder::closes_empty_triangle(std::uint32_t u, std::uint32_t w, std::uint3
     for (std::uint32_t s = first; s < last && !found; ++s) {
       const std::uint32_t x = order[s];
       if (x == u || x == w || x == third || state_[x] == VertexState::kFree) continue;
-      // x joined to the ear's middle vertex too: the cycle u-w-x then only rings that vertex
-      // (its fan closes), it is no tunnel.
-      if (edges_map_.find(third, x) != nullptr) continue;
       const std::uint32_t* ux = edges_map_.find(u, x);
       if (ux == nullptr) continue;
       const std::uint32_t* wx = edges_map_.find(w, x);
-      if (wx != nullptr && (*ux == kInterior || *wx == kInterior)) found = true;
+      if (wx == nullptr || (*ux != kInterior && *wx != kInterior)) continue;
+      // x joined to the ear's middle vertex too: the cycle u-w-x then only rings that vertex
+      // (its fan closes), it is no tunnel.
+      if (edges_map_.find(third, x) == nullptr) found = true;
     }
   });
   return found;
