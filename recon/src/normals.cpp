@@ -485,23 +485,24 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
   // component of e: an edge leaving both tangent planes steeply (a diagonal across a wall,
   // where the arc model fails) is used last.
   Frontier frontier(n);
-  auto agreement = [&](std::uint32_t i, std::uint32_t j) {
-    const Eigen::Vector3f& ni = f.normal[i];
-    const Eigen::Vector3f& nj = f.normal[j];
-    const Eigen::Vector3f e = (points[j] - points[i]).cast<float>();
-    const float len2 = e.squaredNorm();
-    if (!(len2 > 0)) return ni.dot(nj);
-    return ni.dot(nj) - 2.0f * ni.dot(e) * nj.dot(e) / len2;
+  struct Arc {
+    float agreement;  // n_i mirrored across the bisecting plane, dotted with n_j
+    float off_plane;  // the larger off-tangent-plane component of e
   };
-  auto cost = [&](std::uint32_t i, std::uint32_t j) {
+  auto arc = [&](std::uint32_t i, std::uint32_t j) {
     const Eigen::Vector3f& ni = f.normal[i];
     const Eigen::Vector3f& nj = f.normal[j];
     Eigen::Vector3f e = (points[j] - points[i]).cast<float>();
     const float len = e.norm();
-    if (!(len > 0)) return 1.0f - std::abs(ni.dot(nj));
+    if (!(len > 0)) return Arc{ni.dot(nj), 0.0f};
     e /= len;
     const float a = ni.dot(e), b = nj.dot(e);
-    return 1.0f - std::abs(ni.dot(nj) - 2.0f * a * b) + 0.5f * std::max(std::abs(a), std::abs(b));
+    return Arc{ni.dot(nj) - 2.0f * a * b, std::max(std::abs(a), std::abs(b))};
+  };
+  auto agreement = [&](std::uint32_t i, std::uint32_t j) { return arc(i, j).agreement; };
+  auto cost = [&](std::uint32_t i, std::uint32_t j) {
+    const Arc c = arc(i, j);
+    return 1.0f - std::abs(c.agreement) + 0.5f * c.off_plane;
   };
   auto visit = [&](std::uint32_t i) {
     const std::uint32_t* row = knn.data() + i * k;
