@@ -236,6 +236,7 @@ class Builder {
   };
   struct Mode {
     double radius_factor, cos_min_angle, cos_dihedral;
+    bool second_chance;  // valid() may take a feature point for the other face (feature_fits)
   };
 
   // --- front bookkeeping -------------------------------------------------------------------
@@ -364,7 +365,8 @@ class Builder {
   // --- growth --------------------------------------------------------------------------------
   bool try_seed(std::uint32_t s);
   bool process(std::uint32_t eid, const Mode& mode);
-  bool valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius);
+  bool valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius,
+             bool second_chance);
   [[nodiscard]] bool feature_fits(std::uint32_t a, std::uint32_t b, std::uint32_t p,
                                   const Vec3& n1) const;
   [[nodiscard]] bool closes_empty_triangle(std::uint32_t u, std::uint32_t w,
@@ -413,7 +415,6 @@ class Builder {
   std::vector<Candidate> cand_;
   std::vector<std::uint32_t> near_front_;
   double cos_normal_ = 1.0;  // cosine of max_normal_deviation_deg
-  bool relaxed_pass_ = false;  // process() runs with the relaxed (second chance) mode
   FrontResult res_;
 };
 
@@ -532,7 +533,8 @@ bool Builder::closes_empty_triangle(std::uint32_t u, std::uint32_t w, std::uint3
   return found;
 }
 
-bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius) {
+bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius,
+                    bool second_chance) {
   const FrontEdge& e = edges_[eid];
   const std::uint32_t a = e.a, b = e.b;
   const Vec3 &pa = p_[a], &pb = p_[b], &pp = p_[p];
@@ -542,7 +544,7 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   // material: a membrane across a sharp corner, the start of a small tunnel. (Unsigned, this
   // rule let the demo part come out with genus 4 instead of 2.) A point whose orientation the
   // propagation got wrong (thin walls) stays unmeshed and is reported as an outlier.
-  if (f_.normal[p].cast<double>().dot(n1) < cos_normal_ && !(relaxed_pass_ && feature_fits(a, b, p, n1)))
+  if (f_.normal[p].cast<double>().dot(n1) < cos_normal_ && !(second_chance && feature_fits(a, b, p, n1)))
     return false;
   // Existing edges: only the adjacent front edges may be closed. A free point has no edges (no
   // table look-up: on large scans each one is a cache miss).
@@ -695,7 +697,7 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   for (std::size_t i = 0; i < tries; ++i) {
     const std::uint32_t p = cand_[i].p;
     const Vec3 n1 = (pa - pb).cross(p_[p] - pb).normalized();
-    if (valid(eid, p, n1, mode.radius_factor * base)) {
+    if (valid(eid, p, n1, mode.radius_factor * base, mode.second_chance)) {
       add_triangle(eid, p);
       return true;
     }
@@ -797,9 +799,9 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
 void Builder::grow() {
   const double deg = kPi / 180;
   const Mode strict{opt_.radius_factor, std::cos(opt_.min_angle_deg * deg),
-                    std::cos((180.0 - opt_.min_dihedral_deg) * deg)};
+                    std::cos((180.0 - opt_.min_dihedral_deg) * deg), false};
   const Mode relaxed{opt_.relaxed_radius_factor, std::cos(opt_.relaxed_min_angle_deg * deg),
-                     std::cos((180.0 - opt_.relaxed_min_dihedral_deg) * deg)};
+                     std::cos((180.0 - opt_.relaxed_min_dihedral_deg) * deg), true};
   while (true) {
     while (!ears_.empty() || !wave_.empty()) {
       QueueItem it;
@@ -820,10 +822,7 @@ void Builder::grow() {
     for (std::uint32_t id : batch) {
       if (!edges_[id].alive) continue;
       const std::size_t before = tris_.size();
-      relaxed_pass_ = true;  // enables feature_fits (valid)
-      const bool added = process(id, relaxed);
-      relaxed_pass_ = false;
-      if (added) res_.relaxed_triangles += tris_.size() - before;
+      if (process(id, relaxed)) res_.relaxed_triangles += tris_.size() - before;
     }
   }
 }
