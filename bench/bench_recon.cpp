@@ -144,7 +144,8 @@ struct Figures {
   double cube_mm = 0;
   // Seconds. read is NaN for generated inputs (gen holds the generation time instead).
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
-         output_s = kNaN, total_s = kNaN;
+         refine_s = kNaN, output_s = kNaN, total_s = kNaN;
+  std::size_t inserted = 0;
   std::int64_t peak_case_bytes = 0;   ///< heap peak over the case (load + reconstruct) - baseline
   std::int64_t peak_recon_bytes = 0;  ///< heap peak inside reconstruct() - heap at its start
   std::int64_t recon_allocs = 0;      ///< allocations made inside reconstruct()
@@ -257,7 +258,8 @@ Figures run_once(const Case& c, bool& available) {
   recon::ReconstructOptions opt;
   opt.cube_mode = c.cube;
   // Stage start times, filled by the observer; index by position in kStages.
-  static constexpr std::string_view kStages[] = {"reduce", "normals", "front", "output", "done"};
+  static constexpr std::string_view kStages[] = {"reduce", "normals", "front", "refine",
+                                                  "output", "done"};
   Clock::time_point marks[std::size(kStages)];
   bool seen[std::size(kStages)] = {};
   const recon::StageObserver observer = [&](std::string_view stage) {
@@ -286,7 +288,9 @@ Figures run_once(const Case& c, bool& available) {
   f.reduce_s = span(0, 1);
   f.normals_s = span(1, 2);
   f.front_s = span(2, 3);
-  f.output_s = span(3, 4);
+  f.refine_s = span(3, 4);
+  f.output_s = span(4, 5);
+  f.inserted = res->refine.inserted;
   f.input_points = res->input_points;
   f.reduced_points = res->reduced_points;
   f.triangles = res->mesh.triangles.size();
@@ -315,6 +319,7 @@ void keep_best(Figures& best, const Figures& f, bool first) {
   best.reduce_s = min_nan(best.reduce_s, f.reduce_s);
   best.normals_s = min_nan(best.normals_s, f.normals_s);
   best.front_s = min_nan(best.front_s, f.front_s);
+  best.refine_s = min_nan(best.refine_s, f.refine_s);
   best.output_s = min_nan(best.output_s, f.output_s);
   best.total_s = min_nan(best.total_s, f.total_s);
   best.peak_case_bytes = std::max(best.peak_case_bytes, f.peak_case_bytes);
@@ -417,9 +422,9 @@ void print_row(const Outcome& o) {
   else
     std::snprintf(cube, sizeof cube, "%s", cube_name(o.c->cube));
   std::printf(
-      "%-13s   cube %s; output %s ms; %zu triangles; %.1f edge evals and %.1f points "
-      "scanned per reduced pt; heap peak %.1f MiB",
-      "", cube, fmt_ms(f.output_s).c_str(), f.triangles,
+      "%-13s   cube %s; insertion %s ms (%zu points); output %s ms; %zu triangles; %.1f edge "
+      "evals and %.1f points scanned per reduced pt; heap peak %.1f MiB",
+      "", cube, fmt_ms(f.refine_s).c_str(), f.inserted, fmt_ms(f.output_s).c_str(), f.triangles,
       red > 0 ? static_cast<double>(f.edge_evaluations) / red : kNaN,
       red > 0 ? static_cast<double>(f.points_scanned) / red : kNaN,
       static_cast<double>(f.peak_case_bytes) / (1024.0 * 1024.0));
@@ -453,6 +458,7 @@ std::string json_line(const Outcome& o, int repeat) {
   s += ",\"normals_ms\":" + json_ms(f.normals_s) +
        ",\"normals_pts_per_s\":" + json_rate(red, f.normals_s);
   s += ",\"front_ms\":" + json_ms(f.front_s) + ",\"front_pts_per_s\":" + json_rate(red, f.front_s);
+  s += ",\"insertion_ms\":" + json_ms(f.refine_s) + ",\"inserted_points\":" + std::to_string(f.inserted);
   s += ",\"output_ms\":" + json_ms(f.output_s);
   s += ",\"total_ms\":" + json_ms(f.total_s) + ",\"total_pts_per_s\":" + json_rate(in, f.total_s);
   s += ",\"peak_heap_bytes\":" + std::to_string(f.peak_case_bytes);

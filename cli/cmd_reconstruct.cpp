@@ -29,6 +29,7 @@ struct ReconstructArgs {
   bool json = false;
   bool ascii = false;
   std::string outliers_file;
+  bool no_insert = false;
 };
 
 /// Parses --cube: "auto", "none" or a positive size in input units.
@@ -92,6 +93,7 @@ int run_reconstruct(const ReconstructArgs& args) {
   apply_cube(args.cube, opt);
   opt.front.min_angle_deg = args.min_angle_deg;
   opt.front.relaxed_min_angle_deg = std::min(opt.front.relaxed_min_angle_deg, args.min_angle_deg);
+  opt.refine.enabled = !args.no_insert;
   if (args.inputs.empty() && args.conf.empty())
     throw ConfigError("no INPUT given (and no --conf to take the scans from)");
   if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
@@ -143,6 +145,9 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["relaxed_triangles"] = res.relaxed_triangles;
     j["filled_gaps"] = res.filled_gaps;
     j["removed_fan_triangles"] = res.removed_fan_triangles;
+    j["inserted_points"] = res.refine.inserted;
+    j["inserted_by_edge_split"] = res.refine.edge_splits;
+    j["refine_flips"] = res.refine.flips;
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;
@@ -159,6 +164,7 @@ int run_reconstruct(const ReconstructArgs& args) {
               << "triangles        " << res.mesh.triangles.size() << "\n"
               << "boundary loops   " << rep.boundary_loops << "\n"
               << "components       " << rep.components << "\n"
+              << "inserted points  " << res.refine.inserted << " (left out by the front)\n"
               << "outliers         " << res.outliers.size() << "\n"
               << "manifold         "
               << (rep.non_manifold_edges == 0 && rep.non_manifold_vertices == 0 ? "yes" : "NO")
@@ -197,6 +203,8 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_flag("--json", args->json, "print one JSON object with the figures");
   cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
   cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");
+  cmd->add_flag("--no-insert", args->no_insert,
+                "leave the points the front did not reach out (no insertion afterwards)");
   cmd->callback([args, &run] { run = [args] { return run_reconstruct(*args); }; });
 }
 

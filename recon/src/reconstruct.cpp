@@ -51,6 +51,7 @@ void check_input(std::span<const Vec3> points) {
 
 std::vector<std::string> ReconstructOptions::validate() const {
   std::vector<std::string> errors = front.validate();
+  for (auto& e : refine.validate()) errors.push_back(std::move(e));
   if (cube_mode == CubeMode::kFixed && !(cube_mm > 0 && std::isfinite(cube_mm)))
     errors.push_back("cube size must be a positive number");
   if (normals.neighbours < 6 || normals.neighbours > 64)
@@ -131,6 +132,9 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
 
     stage("front");
     fr = advance_front(reduced, frames, grid, options.front);
+
+    stage("refine");
+    res.refine = insert_unused_points(reduced, frames, grid, fr, options.refine);
   }  // frames and grid are freed here, before the output copy
 
   stage("output");

@@ -539,3 +539,34 @@ TEST_CASE("the demo's scan of the container reconstructs to a closed manifold", 
   CHECK(d.at("mesh_to_ref").at("p95").get<double>() < 0.1);  // spacing 0.5 mm, noise 0.02
   CHECK(d.at("hausdorff").get<double>() < 1.0);
 }
+
+TEST_CASE("reconstruct: the points the front left out are inserted, --no-insert keeps them out",
+          "[cli]") {
+  // The container's sharp edges: the front bevels some of them and leaves the feature rows out.
+  TempDir dir;
+  const auto cloud = dir / "c.xyz";
+  auto r = run(dir, {"generate", "--part", "container", "--noise", "0.02", "-o", cloud.string()});
+  REQUIRE(r.status == 0);
+  const RunResult with = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "a.ply").string(),
+                                   "--json"});
+  const RunResult without = run(dir, {"reconstruct", cloud.string(), "-o",
+                                      (dir / "b.ply").string(), "--json", "--no-insert"});
+  INFO(describe(with));
+  INFO(describe(without));
+  REQUIRE(with.status == 0);
+  REQUIRE(without.status == 0);
+  const json a = json_of(with), b = json_of(without);
+  CHECK(b.at("inserted_points") == 0);
+  const auto inserted = a.at("inserted_points").get<std::size_t>();
+  CHECK(inserted > 0);
+  CHECK(a.at("vertices").get<std::size_t>() == b.at("vertices").get<std::size_t>() + inserted);
+  CHECK(a.at("outliers").get<std::size_t>() + inserted == b.at("outliers").get<std::size_t>());
+  // Splits and flips keep the topology and the guarantees.
+  for (const json* j : {&a, &b}) {
+    CHECK(j->at("non_manifold_edges") == 0);
+    CHECK(j->at("non_manifold_vertices") == 0);
+    CHECK(j->at("orientation_consistent") == true);
+    CHECK(j->at("genus") == 2);
+  }
+  CHECK(a.at("boundary_loops") == b.at("boundary_loops"));
+}

@@ -30,8 +30,8 @@ struct Case {
   std::optional<long> genus;
   std::optional<std::size_t> components;
   bool covers_reference;  // the input sees the whole reference (then check ref -> mesh too)
-  bool check_usage = true;  // at least 99% of the reduced points become vertices
-  double min_usage = 0.99;  // the fraction checked when check_usage
+  bool check_usage = true;  // at least min_usage of the reduced points become vertices
+  double min_usage = 0.998;  // the fraction checked when check_usage
   std::optional<long> max_genus = std::nullopt;  // upper bound, where the exact genus is not reached yet
 };
 
@@ -170,16 +170,19 @@ TEST_CASE("real scan: fandisk closes with its sharp edges", "[recon][real][slow]
 // The casting's walls are 0.045-0.07 units thick (measured by ray casting the reference)
 // while its points are 0.028-0.045 apart: both faces of a wall lie within one or two point
 // spacings, below the sampling density at which points alone tell the two sides apart. The
-// normals are oriented right (ray-parity repair, test below), but the front still leaves about
-// 6.3% of the reduced points unmeshed and extra handles (genus 15-21 for 9: it moves by several
-// with any change in the order in which the front meets the thin features, measured over several
-// orderings of the queue; with the reference's own normals it does no better). Asserted: a valid
-// mesh close to the part, one component, and no regression beyond that spread's low end.
+// normals are oriented right (ray-parity repair, test below). The front leaves about 6% of the
+// reduced points out, mostly the feature rows of sharp edges it bevelled; the insertion pass
+// puts them back (splitting the bevel, then flipping edges along the feature), so the mesh
+// covers the part and 99% of the points are used. The front still makes extra handles (genus
+// 15-21 for 9: it moves by several with any change in the order in which the front meets the
+// thin features, measured over several orderings of the queue; with the reference's own
+// normals it does no better). Asserted: a valid mesh on and covering the part, one component,
+// and no regression beyond that spread's low end.
 TEST_CASE("real scan: casting (thin walls) gives a valid mesh on the surface",
           "[recon][real][slow]") {
   Case c{"casting", {"casting/casting_vertices.xyz"}, "", "casting/casting.obj", std::nullopt,
-         std::nullopt, 1, false};
-  c.min_usage = 0.935;
+         std::nullopt, 1, true};
+  c.min_usage = 0.99;
   c.max_genus = 17;
   run_case(c);
 }

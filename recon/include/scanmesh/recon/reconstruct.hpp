@@ -15,6 +15,7 @@
 #include "scanmesh/recon/front.hpp"
 #include "scanmesh/recon/mesh.hpp"
 #include "scanmesh/recon/reduce.hpp"
+#include "scanmesh/recon/refine.hpp"
 
 namespace scanmesh::recon {
 
@@ -29,6 +30,7 @@ struct ReconstructOptions {
   double project_radius_factor = 1.5;
   FrontOptions front;
   NormalOptions normals;
+  RefineOptions refine;
   /// Reports every bad field at once (empty when valid).
   [[nodiscard]] std::vector<std::string> validate() const;
 };
@@ -41,10 +43,11 @@ struct ReconstructResult {
   SpacingEstimate spacing;
   std::vector<Vec3> outliers;      ///< reduced points the front never reached
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
+  RefineStats refine;  ///< points the front left out that were inserted afterwards
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
 };
 
-/// Called with the name of each stage when it starts ("reduce", "normals", "front", "output")
+/// Called with the name of each stage when it starts ("reduce", "normals", "front", "refine", "output")
 /// and with "done" at the end.
 using StageObserver = std::function<void(std::string_view stage)>;
 

@@ -1,0 +1,406 @@
+// Inserting left-out points into the finished mesh (see refine.hpp).
+// SPDX-License-Identifier: MIT
+#include "scanmesh/recon/refine.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <numbers>
+
+namespace scanmesh::recon {
+namespace {
+
+constexpr std::uint32_t kNone = 0xffffffffu;
+
+/// Position of `v` in `t` (0..2), or 3.
+int corner_of(const Triangle& t, std::uint32_t v) {
+  return t[0] == v ? 0 : t[1] == v ? 1 : t[2] == v ? 2 : 3;
+}
+
+/// Whether t holds the directed edge a -> b.
+bool has_directed(const Triangle& t, std::uint32_t a, std::uint32_t b) {
+  const int i = corner_of(t, a);
+  return i < 3 && t[(i + 1) % 3] == b;
+}
+
+double angle_between(const Vec3& a, const Vec3& b) {
+  return std::acos(std::clamp(a.dot(b), -1.0, 1.0));
+}
+
+/// Smallest interior angle of triangle (a, b, c), radians (0 when degenerate).
+double min_angle(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, bc = c - b, ca = a - c;
+  const double lab = ab.norm(), lbc = bc.norm(), lca = ca.norm();
+  if (lab == 0 || lbc == 0 || lca == 0) return 0;
+  const double ca_ = std::clamp(-ca.dot(ab) / (lca * lab), -1.0, 1.0);
+  const double cb_ = std::clamp(-ab.dot(bc) / (lab * lbc), -1.0, 1.0);
+  const double cc_ = std::clamp(-bc.dot(ca) / (lbc * lca), -1.0, 1.0);
+  return std::acos(std::max({ca_, cb_, cc_}));
+}
+
+class Refiner {
+ public:
+  Refiner(std::span<const Vec3> points, const LocalFrames& frames, const PointGrid& grid,
+          FrontResult& front, const RefineOptions& options)
+      : p_(points), f_(frames), grid_(grid), fr_(front), tris_(front.triangles), o_(options),
+        cos_dev_(std::cos(options.max_normal_deviation_deg * std::numbers::pi / 180)) {}
+
+  RefineStats run();
+
+ private:
+  [[nodiscard]] bool complete(std::uint32_t v) const { return slot_[v] != kNone; }
+  std::vector<std::uint32_t>& around(std::uint32_t v) { return lists_[slot_[v]]; }
+  void make_complete(std::uint32_t v) {
+    if (slot_[v] == kNone) {
+      slot_[v] = static_cast<std::uint32_t>(lists_.size());
+      lists_.emplace_back();
+    }
+  }
+  void unlink(std::uint32_t v, std::uint32_t t) {
+    auto& l = around(v);
+    l.erase(std::find(l.begin(), l.end(), t));
+  }
+  void link(std::uint32_t v, std::uint32_t t) { around(v).push_back(t); }
+  /// Replaces triangle t by `nt` (same slot), keeping the vertex lists right.
+  void replace(std::uint32_t t, const Triangle& nt) {
+    for (std::uint32_t v : tris_[t])
+      if (corner_of(nt, v) == 3) unlink(v, t);
+    for (std::uint32_t v : nt)
+      if (corner_of(tris_[t], v) == 3) link(v, t);
+    tris_[t] = nt;
+  }
+  std::uint32_t append(const Triangle& nt) {
+    const auto t = static_cast<std::uint32_t>(tris_.size());
+    tris_.push_back(nt);
+    for (std::uint32_t v : nt) link(v, t);
+    return t;
+  }
+  /// The triangle holding directed edge a -> b (a complete), or kNone.
+  std::uint32_t find_tri(std::uint32_t a, std::uint32_t b) {
+    for (std::uint32_t t : around(a))
+      if (has_directed(tris_[t], a, b)) return t;
+    return kNone;
+  }
+  [[nodiscard]] Vec3 unit_normal(const Triangle& t) const {
+    const Vec3 n = (p_[t[1]] - p_[t[0]]).cross(p_[t[2]] - p_[t[0]]);
+    const double l = n.norm();
+    return l > 0 ? Vec3(n / l) : Vec3::Zero();
+  }
+  bool try_insert(std::uint32_t p);
+  bool try_flip(std::uint32_t u, std::uint32_t v);
+  void improve_around(std::uint32_t p);
+#ifndef NDEBUG
+  bool single_fan(std::uint32_t v);  // debug check: v's triangles form one fan
+#endif
+
+  std::span<const Vec3> p_;
+  const LocalFrames& f_;
+  const PointGrid& grid_;
+  FrontResult& fr_;
+  std::vector<Triangle>& tris_;
+  const RefineOptions& o_;
+  const double cos_dev_;
+  std::vector<std::uint32_t> slot_;  // per vertex: its triangle list in lists_, or kNone
+  std::vector<std::vector<std::uint32_t>> lists_;
+  std::vector<std::uint32_t> cand_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> queue_;
+  RefineStats stats_;
+};
+
+RefineStats Refiner::run() {
+  const std::size_t n = p_.size();
+  std::vector<std::uint8_t> used(n, 0);
+  for (const Triangle& t : tris_)
+    for (std::uint32_t v : t) used[v] = 1;
+  // Vertices near a left-out point, then two rings of triangles around them: every vertex of
+  // those gets its full triangle list, so any edge the insertion touches can be looked up.
+  std::vector<std::uint8_t> mark(n, 0);
+  for (std::uint32_t q : fr_.outliers) {
+    const double r = o_.search_factor * f_.spacing[q];
+    grid_.for_each_range_within(p_[q], r, [&](std::uint32_t first, std::uint32_t last) {
+      for (std::uint32_t s = first; s < last; ++s) {
+        const std::uint32_t j = grid_.order()[s];
+        if (used[j] && (p_[j] - p_[q]).squaredNorm() <= r * r) mark[j] = 1;
+      }
+    });
+  }
+  for (std::uint8_t level = 1; level <= 2; ++level)
+    for (const Triangle& t : tris_)
+      if (mark[t[0]] == level || mark[t[1]] == level || mark[t[2]] == level)
+        for (std::uint32_t v : t)
+          if (mark[v] == 0) mark[v] = level + 1;
+  slot_.assign(n, kNone);
+  for (std::uint32_t v = 0; v < n; ++v)
+    if (mark[v]) make_complete(v);
+  for (std::uint32_t t = 0; t < tris_.size(); ++t)
+    for (std::uint32_t v : tris_[t])
+      if (mark[v]) link(v, t);
+  std::vector<std::uint8_t>().swap(mark);
+
+  std::vector<std::uint32_t> left = fr_.outliers, inserted;
+  for (int round = 0; round < o_.rounds && !left.empty(); ++round) {
+    std::vector<std::uint32_t> still;
+    for (std::uint32_t q : left) {
+      if (try_insert(q)) {
+        inserted.push_back(q);
+        used[q] = 1;
+      } else {
+        still.push_back(q);
+      }
+    }
+    if (still.size() == left.size()) break;
+    left.swap(still);
+  }
+  // Flip around the new vertices until nothing improves (a few passes at most).
+  for (int pass = 0; pass < 4; ++pass) {
+    const std::size_t before = stats_.flips;
+    for (std::uint32_t q : inserted) improve_around(q);
+    if (stats_.flips == before) break;
+  }
+  for (std::uint32_t q : inserted) {
+    // A vertex on a boundary edge of the mesh stays a boundary vertex.
+    bool open = false;
+    for (std::uint32_t t : around(q)) {
+      const Triangle& tr = tris_[t];
+      const int i = corner_of(tr, q);
+      if (find_tri(tr[(i + 1) % 3], q) == kNone) open = true;
+    }
+    fr_.state[q] = open ? VertexState::kBoundary : VertexState::kDone;
+  }
+  fr_.outliers = std::move(left);
+  stats_.inserted = inserted.size();
+#ifndef NDEBUG
+  for (std::uint32_t v = 0; v < n; ++v)
+    if (complete(v)) assert(single_fan(v));
+#endif
+  return stats_;
+}
+
+#ifndef NDEBUG
+bool Refiner::single_fan(std::uint32_t v) {
+  // Each triangle (v, a, b) links a -> b; a vertex is manifold when these links form one path
+  // or one cycle, and each directed edge at v is used once.
+  const auto& l = around(v);
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> links;
+  for (std::uint32_t t : l) {
+    const Triangle& tr = tris_[t];
+    const int i = corner_of(tr, v);
+    if (i == 3) return false;
+    links.emplace_back(tr[(i + 1) % 3], tr[(i + 2) % 3]);
+  }
+  if (links.empty()) return true;
+  std::sort(links.begin(), links.end());
+  for (std::size_t k = 1; k < links.size(); ++k)
+    if (links[k].first == links[k - 1].first) return false;
+  auto next = [&](std::uint32_t a) -> const std::pair<std::uint32_t, std::uint32_t>* {
+    auto it = std::lower_bound(links.begin(), links.end(), std::make_pair(a, 0u));
+    return it != links.end() && it->first == a ? &*it : nullptr;
+  };
+  // Start where no link ends (a border), else anywhere; walk and count.
+  std::uint32_t start = links.front().first;
+  for (const auto& [a, b] : links) {
+    bool ends_here = false;
+    for (const auto& lk : links) ends_here |= lk.second == a;
+    if (!ends_here) {
+      start = a;
+      break;
+    }
+  }
+  std::size_t walked = 0;
+  for (auto* lk = next(start); lk != nullptr && walked <= links.size(); lk = next(lk->second)) {
+    ++walked;
+    if (lk->second == start) break;
+  }
+  return walked == links.size();
+}
+#endif
+
+bool Refiner::try_insert(std::uint32_t q) {
+  const Vec3& P = p_[q];
+  const double sp = f_.spacing[q];
+  const Vec3 nq = f_.normal[q].cast<double>();
+  const double r = o_.search_factor * sp, hmax = o_.max_height_factor * sp;
+  cand_.clear();
+  grid_.for_each_range_within(P, r, [&](std::uint32_t first, std::uint32_t last) {
+    for (std::uint32_t s = first; s < last; ++s) {
+      const std::uint32_t j = grid_.order()[s];
+      if (j == q || !complete(j) || (p_[j] - P).squaredNorm() > r * r) continue;
+      for (std::uint32_t t : around(j)) cand_.push_back(t);
+    }
+  });
+  std::sort(cand_.begin(), cand_.end());
+  cand_.erase(std::unique(cand_.begin(), cand_.end()), cand_.end());
+  // The nearest triangle whose plane the point lies close to, over its inside.
+  std::uint32_t best = kNone;
+  double best_h = hmax;
+  double bary[3] = {0, 0, 0};
+  for (std::uint32_t t : cand_) {
+    const Triangle& tr = tris_[t];
+    const Vec3 &a = p_[tr[0]], &b = p_[tr[1]], &c = p_[tr[2]];
+    const Vec3 nn = (b - a).cross(c - a);
+    const double area2 = nn.norm();
+    if (area2 == 0) continue;
+    const Vec3 nt = nn / area2;
+    if (nt.dot(nq) < cos_dev_) continue;
+    const double h = (P - a).dot(nt);
+    if (std::abs(h) > best_h) continue;
+    const Vec3 x = P - h * nt;
+    const double la = (c - b).cross(x - b).dot(nt) / area2;
+    const double lb = (a - c).cross(x - c).dot(nt) / area2;
+    const double lc = 1 - la - lb;
+    if (std::min({la, lb, lc}) < -0.02) continue;
+    if (std::abs(h) == best_h && best != kNone && t > best) continue;
+    best = t;
+    best_h = std::abs(h);
+    bary[0] = la;
+    bary[1] = lb;
+    bary[2] = lc;
+  }
+  if (best == kNone) return false;
+  const Triangle t0 = tris_[best];
+  for (std::uint32_t v : t0)
+    if (!complete(v)) return false;
+  const Vec3 n0 = unit_normal(t0);
+  const int weakest = static_cast<int>(std::min_element(bary, bary + 3) - bary);
+  const double min_ok = 3.0 * std::numbers::pi / 180;
+  // A new triangle must keep some shape and not turn over against the one it replaces.
+  auto fits = [&](const Triangle& nt, const Vec3& parent) {
+    if (min_angle(p_[nt[0]], p_[nt[1]], p_[nt[2]]) < min_ok) return false;
+    return unit_normal(nt).dot(parent) > 0.1;
+  };
+  make_complete(q);
+  if (bary[weakest] < 0.2) {
+    // Near the edge opposite the weakest corner: split that edge (and the triangle across it).
+    const std::uint32_t u = t0[(weakest + 1) % 3], v = t0[(weakest + 2) % 3], x = t0[weakest];
+    const std::uint32_t t1 = find_tri(v, u);
+    if (t1 != kNone) {
+      const Triangle tb = tris_[t1];
+      const std::uint32_t y = tb[(corner_of(tb, v) + 2) % 3];
+      if (!complete(y) || y == x) return false;
+      const Vec3 n1 = unit_normal(tb);
+      const Triangle a1{u, q, x}, a2{q, v, x}, b1{v, q, y}, b2{q, u, y};
+      if (!fits(a1, n0) || !fits(a2, n0) || !fits(b1, n1) || !fits(b2, n1)) return false;
+      replace(best, a1);
+      append(a2);
+      replace(t1, b1);
+      append(b2);
+    } else {
+      const Triangle a1{u, q, x}, a2{q, v, x};
+      if (!fits(a1, n0) || !fits(a2, n0)) return false;
+      replace(best, a1);
+      append(a2);
+    }
+    ++stats_.edge_splits;
+  } else {
+    const Triangle a1{t0[0], t0[1], q}, a2{t0[1], t0[2], q}, a3{t0[2], t0[0], q};
+    if (!fits(a1, n0) || !fits(a2, n0) || !fits(a3, n0)) return false;
+    replace(best, a1);
+    append(a2);
+    append(a3);
+  }
+  // Lawson-style: the edges opposite the new vertex.
+  improve_around(q);
+  return true;
+}
+
+void Refiner::improve_around(std::uint32_t q) {
+  if (!o_.flip) return;
+  // Edges opposite q (its link) and the edges at q; a flip brings new link edges.
+  queue_.clear();
+  for (std::uint32_t t : around(q)) {
+    const Triangle& tr = tris_[t];
+    const int i = corner_of(tr, q);
+    queue_.emplace_back(tr[(i + 1) % 3], tr[(i + 2) % 3]);
+    queue_.emplace_back(q, tr[(i + 1) % 3]);
+  }
+  std::size_t budget = 64;
+  while (!queue_.empty() && budget > 0) {
+    const auto [u, v] = queue_.back();
+    queue_.pop_back();
+    if (try_flip(u, v)) --budget;
+  }
+}
+
+bool Refiner::try_flip(std::uint32_t u, std::uint32_t v) {
+  if (!complete(u) || !complete(v)) return false;
+  const std::uint32_t t1 = find_tri(u, v), t2 = find_tri(v, u);
+  if (t1 == kNone || t2 == kNone) return false;
+  const Triangle A = tris_[t1], B = tris_[t2];
+  const std::uint32_t x = A[(corner_of(A, u) + 2) % 3], y = B[(corner_of(B, v) + 2) % 3];
+  if (x == y || !complete(x) || !complete(y)) return false;
+  if (find_tri(x, y) != kNone || find_tri(y, x) != kNone) return false;
+  const Triangle C{x, u, y}, D{y, v, x};
+  const Vec3 n1 = unit_normal(A), n2 = unit_normal(B), m1 = unit_normal(C), m2 = unit_normal(D);
+  if (m1.isZero() || m2.isZero() || n1.isZero() || n2.isZero()) return false;
+  const Vec3 avg = (n1 + n2).normalized();
+  if (m1.dot(avg) < 0.5 || m2.dot(avg) < 0.5) return false;  // no fold
+  // The four outer edges: which old and new triangle holds each, and the normal across it.
+  struct Outer {
+    std::uint32_t a, b;  // directed as in the quad
+    const Vec3* old_n;
+    const Vec3* new_n;
+  };
+  const Outer outer[4] = {{v, x, &n1, &m2}, {x, u, &n1, &m1}, {u, y, &n2, &m1}, {y, v, &n2, &m2}};
+  double e_old = angle_between(n1, n2) * (p_[u] - p_[v]).norm();
+  double e_new = angle_between(m1, m2) * (p_[x] - p_[y]).norm();
+  double worst = std::max(angle_between(n1, n2), angle_between(m1, m2));
+  // A new triangle with two border edges would hang free at the border (bending is only
+  // counted between triangles): never made.
+  bool open[4];
+  for (int k = 0; k < 4; ++k) open[k] = find_tri(outer[k].b, outer[k].a) == kNone;
+  if ((open[1] && open[2]) || (open[0] && open[3])) return false;
+  for (const Outer& o : outer) {
+    const std::uint32_t t = find_tri(o.b, o.a);
+    if (t == kNone) continue;
+    const Vec3 no = unit_normal(tris_[t]);
+    const double len = (p_[o.a] - p_[o.b]).norm();
+    const double ao = angle_between(*o.old_n, no), an = angle_between(*o.new_n, no);
+    e_old += ao * len;
+    e_new += an * len;
+    worst = std::max({worst, ao, an});
+  }
+  const double old_min = std::min(min_angle(p_[A[0]], p_[A[1]], p_[A[2]]),
+                                  min_angle(p_[B[0]], p_[B[1]], p_[B[2]]));
+  const double new_min = std::min(min_angle(p_[C[0]], p_[C[1]], p_[C[2]]),
+                                  min_angle(p_[D[0]], p_[D[1]], p_[D[2]]));
+  bool flip = false;
+  if (worst < 12.0 * std::numbers::pi / 180) {
+    flip = new_min > old_min * 1.05;  // flat: the better shape (Delaunay-like)
+  } else {
+    flip = e_new < 0.9 * e_old && new_min > std::min(0.5 * old_min, 10.0 * std::numbers::pi / 180);
+  }
+  if (!flip) return false;
+  replace(t1, C);
+  replace(t2, D);
+  ++stats_.flips;
+  // The quad's outer edges may now improve.
+  queue_.emplace_back(v, x);
+  queue_.emplace_back(x, u);
+  queue_.emplace_back(u, y);
+  queue_.emplace_back(y, v);
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::string> RefineOptions::validate() const {
+  std::vector<std::string> errors;
+  if (!(search_factor > 0 && search_factor <= 10))
+    errors.push_back("refine search factor must be in (0, 10]");
+  if (!(max_height_factor >= 0 && max_height_factor <= 5))
+    errors.push_back("refine height factor must be in [0, 5]");
+  if (!(max_normal_deviation_deg >= 0 && max_normal_deviation_deg <= 180))
+    errors.push_back("refine normal deviation must be in [0, 180] degrees");
+  if (rounds < 0 || rounds > 10) errors.push_back("refine rounds must be in [0, 10]");
+  return errors;
+}
+
+RefineStats insert_unused_points(std::span<const Vec3> points, const LocalFrames& frames,
+                                 const PointGrid& grid, FrontResult& front,
+                                 const RefineOptions& options) {
+  if (!options.enabled || front.outliers.empty() || front.triangles.empty()) return {};
+  Refiner r(points, frames, grid, front, options);
+  return r.run();
+}
+
+}  // namespace scanmesh::recon
