@@ -11,6 +11,8 @@ namespace scanmesh::recon {
 namespace {
 
 constexpr std::uint32_t kNone = 0xffffffffu;
+/// Local spacings beyond the search radius within which vertices get their triangle lists.
+constexpr double kListReach = 3.0;
 
 /// Position of `v` in `t` (0..2), or 3.
 int corner_of(const Triangle& t, std::uint32_t v) {
@@ -21,10 +23,6 @@ int corner_of(const Triangle& t, std::uint32_t v) {
 bool has_directed(const Triangle& t, std::uint32_t a, std::uint32_t b) {
   const int i = corner_of(t, a);
   return i < 3 && t[(i + 1) % 3] == b;
-}
-
-double angle_between(const Vec3& a, const Vec3& b) {
-  return std::acos(std::clamp(a.dot(b), -1.0, 1.0));
 }
 
 /// Smallest interior angle of triangle (a, b, c), radians (0 when degenerate).
@@ -104,19 +102,22 @@ class Refiner {
   std::vector<std::vector<std::uint32_t>> lists_;
   std::vector<std::uint32_t> cand_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> queue_;
+  std::vector<std::uint8_t> touched_;  // per vertex: a flip changed its triangles
   RefineStats stats_;
 };
 
 RefineStats Refiner::run() {
   const std::size_t n = p_.size();
   std::vector<std::uint8_t> used(n, 0);
-  for (const Triangle& t : tris_)
-    for (std::uint32_t v : t) used[v] = 1;
-  // Vertices near a left-out point, then two rings of triangles around them: every vertex of
-  // those gets its full triangle list, so any edge the insertion touches can be looked up.
+  for (std::uint32_t v = 0; v < n; ++v) used[v] = fr_.state[v] != VertexState::kOutlier ? 1 : 0;
+  touched_.assign(n, 0);
+  // Every used vertex near a left-out point gets its full triangle list (one pass over the
+  // triangles), far enough around it that the triangles an insertion and its flips touch (edges
+  // are at most a few spacings long) have all their corners listed; an operation that would
+  // touch an unlisted vertex is skipped.
   std::vector<std::uint8_t> mark(n, 0);
   for (std::uint32_t q : fr_.outliers) {
-    const double r = o_.search_factor * f_.spacing[q];
+    const double r = (o_.search_factor + kListReach) * f_.spacing[q];
     grid_.for_each_range_within(p_[q], r, [&](std::uint32_t first, std::uint32_t last) {
       for (std::uint32_t s = first; s < last; ++s) {
         const std::uint32_t j = grid_.order()[s];
@@ -124,11 +125,6 @@ RefineStats Refiner::run() {
       }
     });
   }
-  for (std::uint8_t level = 1; level <= 2; ++level)
-    for (const Triangle& t : tris_)
-      if (mark[t[0]] == level || mark[t[1]] == level || mark[t[2]] == level)
-        for (std::uint32_t v : t)
-          if (mark[v] == 0) mark[v] = level + 1;
   slot_.assign(n, kNone);
   for (std::uint32_t v = 0; v < n; ++v)
     if (mark[v]) make_complete(v);
@@ -152,9 +148,18 @@ RefineStats Refiner::run() {
     left.swap(still);
   }
   // Flip around the new vertices until nothing improves (a few passes at most).
+  // Later passes revisit only the points whose neighbourhood a flip changed.
   for (int pass = 0; pass < 4; ++pass) {
     const std::size_t before = stats_.flips;
-    for (std::uint32_t q : inserted) improve_around(q);
+    std::vector<std::uint8_t> changed;
+    changed.swap(touched_);
+    touched_.assign(n, 0);
+    for (std::uint32_t q : inserted) {
+      bool near_change = pass == 0 || changed[q] != 0;
+      for (std::size_t k = 0; k < around(q).size() && !near_change; ++k)
+        for (std::uint32_t w : tris_[around(q)[k]]) near_change = near_change || changed[w] != 0;
+      if (near_change) improve_around(q);
+    }
     if (stats_.flips == before) break;
   }
   for (std::uint32_t q : inserted) {
@@ -341,35 +346,50 @@ bool Refiner::try_flip(std::uint32_t u, std::uint32_t v) {
     const Vec3* new_n;
   };
   const Outer outer[4] = {{v, x, &n1, &m2}, {x, u, &n1, &m1}, {u, y, &n2, &m1}, {y, v, &n2, &m2}};
-  double e_old = angle_between(n1, n2) * (p_[u] - p_[v]).norm();
-  double e_new = angle_between(m1, m2) * (p_[x] - p_[y]).norm();
-  double worst = std::max(angle_between(n1, n2), angle_between(m1, m2));
+  // Cosines of the bending at the five edges, before and after; a border edge does not bend.
+  double len[5], cos_old[5], cos_new[5];
+  len[4] = 0;
+  cos_old[4] = n1.dot(n2);
+  cos_new[4] = m1.dot(m2);
+  bool open[4];
+  for (int k = 0; k < 4; ++k) {
+    const std::uint32_t t = find_tri(outer[k].b, outer[k].a);
+    open[k] = t == kNone;
+    len[k] = (p_[outer[k].a] - p_[outer[k].b]).norm();
+    if (open[k]) {
+      cos_old[k] = cos_new[k] = 1;
+      continue;
+    }
+    const Vec3 no = unit_normal(tris_[t]);
+    cos_old[k] = outer[k].old_n->dot(no);
+    cos_new[k] = outer[k].new_n->dot(no);
+  }
   // A new triangle with two border edges would hang free at the border (bending is only
   // counted between triangles): never made.
-  bool open[4];
-  for (int k = 0; k < 4; ++k) open[k] = find_tri(outer[k].b, outer[k].a) == kNone;
   if ((open[1] && open[2]) || (open[0] && open[3])) return false;
-  for (const Outer& o : outer) {
-    const std::uint32_t t = find_tri(o.b, o.a);
-    if (t == kNone) continue;
-    const Vec3 no = unit_normal(tris_[t]);
-    const double len = (p_[o.a] - p_[o.b]).norm();
-    const double ao = angle_between(*o.old_n, no), an = angle_between(*o.new_n, no);
-    e_old += ao * len;
-    e_new += an * len;
-    worst = std::max({worst, ao, an});
-  }
   const double old_min = std::min(min_angle(p_[A[0]], p_[A[1]], p_[A[2]]),
                                   min_angle(p_[B[0]], p_[B[1]], p_[B[2]]));
   const double new_min = std::min(min_angle(p_[C[0]], p_[C[1]], p_[C[2]]),
                                   min_angle(p_[D[0]], p_[D[1]], p_[D[2]]));
+  const double cos_flat = std::cos(12.0 * std::numbers::pi / 180);
+  bool flat = true;
+  for (int k = 0; k < 5; ++k) flat = flat && cos_old[k] > cos_flat && cos_new[k] > cos_flat;
   bool flip = false;
-  if (worst < 12.0 * std::numbers::pi / 180) {
+  if (flat) {
     flip = new_min > old_min * 1.05;  // flat: the better shape (Delaunay-like)
   } else {
+    // Total bending: sum of length x angle between the normals on either side.
+    double e_old = std::acos(std::clamp(cos_old[4], -1.0, 1.0)) * (p_[u] - p_[v]).norm();
+    double e_new = std::acos(std::clamp(cos_new[4], -1.0, 1.0)) * (p_[x] - p_[y]).norm();
+    for (int k = 0; k < 4; ++k) {
+      if (open[k]) continue;
+      e_old += std::acos(std::clamp(cos_old[k], -1.0, 1.0)) * len[k];
+      e_new += std::acos(std::clamp(cos_new[k], -1.0, 1.0)) * len[k];
+    }
     flip = e_new < 0.9 * e_old && new_min > std::min(0.5 * old_min, 10.0 * std::numbers::pi / 180);
   }
   if (!flip) return false;
+  for (std::uint32_t w : {u, v, x, y}) touched_[w] = 1;
   replace(t1, C);
   replace(t2, D);
   ++stats_.flips;
