@@ -145,7 +145,7 @@ struct Figures {
   // Seconds. read is NaN for generated inputs (gen holds the generation time instead).
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
          refine_s = kNaN, output_s = kNaN, total_s = kNaN;
-  std::size_t inserted = 0;
+  std::size_t inserted = 0, slivers = 0, sliver_flips = 0;
   std::int64_t peak_case_bytes = 0;   ///< heap peak over the case (load + reconstruct) - baseline
   std::int64_t peak_recon_bytes = 0;  ///< heap peak inside reconstruct() - heap at its start
   std::int64_t recon_allocs = 0;      ///< allocations made inside reconstruct()
@@ -291,6 +291,8 @@ Figures run_once(const Case& c, bool& available) {
   f.refine_s = span(3, 4);
   f.output_s = span(4, 5);
   f.inserted = res->refine.inserted;
+  f.slivers = res->refine.slivers;
+  f.sliver_flips = res->refine.sliver_flips;
   f.input_points = res->input_points;
   f.reduced_points = res->reduced_points;
   f.triangles = res->mesh.triangles.size();
@@ -422,9 +424,11 @@ void print_row(const Outcome& o) {
   else
     std::snprintf(cube, sizeof cube, "%s", cube_name(o.c->cube));
   std::printf(
-      "%-13s   cube %s; insertion %s ms (%zu points); output %s ms; %zu triangles; %.1f edge "
-      "evals and %.1f points scanned per reduced pt; heap peak %.1f MiB",
-      "", cube, fmt_ms(f.refine_s).c_str(), f.inserted, fmt_ms(f.output_s).c_str(), f.triangles,
+      "%-13s   cube %s; insertion %s ms (%zu points; %zu slivers, %zu flips to mend them); "
+      "output %s ms; %zu triangles; %.1f edge evals and %.1f points scanned per reduced pt; heap "
+      "peak %.1f MiB",
+      "", cube, fmt_ms(f.refine_s).c_str(), f.inserted, f.slivers, f.sliver_flips,
+      fmt_ms(f.output_s).c_str(), f.triangles,
       red > 0 ? static_cast<double>(f.edge_evaluations) / red : kNaN,
       red > 0 ? static_cast<double>(f.points_scanned) / red : kNaN,
       static_cast<double>(f.peak_case_bytes) / (1024.0 * 1024.0));

@@ -148,6 +148,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["inserted_points"] = res.refine.inserted;
     j["inserted_by_edge_split"] = res.refine.edge_splits;
     j["refine_flips"] = res.refine.flips;
+    j["sliver_flips"] = res.refine.sliver_flips;
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;

@@ -103,6 +103,7 @@ class Refiner {
   std::vector<std::uint32_t> cand_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> queue_;
   std::vector<std::uint8_t> touched_;  // per vertex: a flip changed its triangles
+  bool mending_sliver_ = false;        // try_flip is mending slivers
   RefineStats stats_;
 };
 
@@ -116,14 +117,40 @@ RefineStats Refiner::run() {
   // are at most a few spacings long) have all their corners listed; an operation that would
   // touch an unlisted vertex is skipped.
   std::vector<std::uint8_t> mark(n, 0);
-  for (std::uint32_t q : fr_.outliers) {
-    const double r = (o_.search_factor + kListReach) * f_.spacing[q];
+  auto mark_around = [&](std::uint32_t q, double r) {
     grid_.for_each_range_within(p_[q], r, [&](std::uint32_t first, std::uint32_t last) {
       for (std::uint32_t s = first; s < last; ++s) {
         const std::uint32_t j = grid_.order()[s];
         if (used[j] && (p_[j] - p_[q]).squaredNorm() <= r * r) mark[j] = 1;
       }
     });
+  };
+  for (std::uint32_t q : fr_.outliers) mark_around(q, (o_.search_factor + kListReach) * f_.spacing[q]);
+  // Slivers (a corner under sliver_deg; tested on squared lengths, no root), and the vertices
+  // around them.
+  std::vector<std::uint32_t> slivers;
+  if (o_.sliver_deg > 0) {
+    const double c = std::cos(o_.sliver_deg * std::numbers::pi / 180), c2 = c * c;
+    for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+      const Triangle& tr = tris_[t];
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 u = p_[tr[(k + 1) % 3]] - p_[tr[k]], w = p_[tr[(k + 2) % 3]] - p_[tr[k]];
+        const double d = u.dot(w);
+        if (d > 0 && d * d > c2 * u.squaredNorm() * w.squaredNorm()) {
+          slivers.push_back(t);
+          break;
+        }
+      }
+    }
+    // Flips reach one edge beyond the sliver's corners (the quads' far corners): mark that far.
+    for (std::uint32_t t : slivers) {
+      const Triangle& tr = tris_[t];
+      const double longest = std::sqrt(std::max({(p_[tr[0]] - p_[tr[1]]).squaredNorm(),
+                                                 (p_[tr[1]] - p_[tr[2]]).squaredNorm(),
+                                                 (p_[tr[2]] - p_[tr[0]]).squaredNorm()}));
+      for (std::uint32_t v : tr) mark_around(v, std::max(1.2 * longest, 2.0 * f_.spacing[v]));
+    }
+    stats_.slivers = slivers.size();
   }
   slot_.assign(n, kNone);
   for (std::uint32_t v = 0; v < n; ++v)
@@ -159,6 +186,33 @@ RefineStats Refiner::run() {
       for (std::size_t k = 0; k < around(q).size() && !near_change; ++k)
         for (std::uint32_t w : tris_[around(q)[k]]) near_change = near_change || changed[w] != 0;
       if (near_change) improve_around(q);
+    }
+    if (stats_.flips == before) break;
+  }
+  // Slivers: flip their edges, longest first, where that improves the shape (flat) or lowers
+  // the bending; each flip queues the quad's outer edges.
+  for (int pass = 0; pass < 2 && o_.flip && !slivers.empty(); ++pass) {
+    const std::size_t before = stats_.flips;
+    for (std::uint32_t t : slivers) {
+      const Triangle tr = tris_[t];
+      int order[3] = {0, 1, 2};  // edge k: tr[k] -> tr[k + 1]
+      double len[3];
+      for (int k = 0; k < 3; ++k) len[k] = (p_[tr[(k + 1) % 3]] - p_[tr[k]]).squaredNorm();
+      std::sort(order, order + 3, [&](int l, int r) { return len[l] > len[r]; });
+      queue_.clear();
+      for (int k = 2; k >= 0; --k) queue_.emplace_back(tr[order[k]], tr[(order[k] + 1) % 3]);
+      std::size_t budget = 16;
+      while (!queue_.empty() && budget > 0) {
+        const auto [u, v] = queue_.back();
+        queue_.pop_back();
+        mending_sliver_ = true;
+        const bool flipped = try_flip(u, v);
+        mending_sliver_ = false;
+        if (flipped) {
+          --budget;
+          ++stats_.sliver_flips;
+        }
+      }
     }
     if (stats_.flips == before) break;
   }
@@ -387,6 +441,9 @@ bool Refiner::try_flip(std::uint32_t u, std::uint32_t v) {
       e_new += std::acos(std::clamp(cos_new[k], -1.0, 1.0)) * len[k];
     }
     flip = e_new < 0.9 * e_old && new_min > std::min(0.5 * old_min, 10.0 * std::numbers::pi / 180);
+    // Mending a sliver: a clearly better shape may cost a little bending.
+    if (!flip && mending_sliver_)
+      flip = new_min > 2 * old_min && e_new < 1.1 * e_old;
   }
   if (!flip) return false;
   for (std::uint32_t w : {u, v, x, y}) touched_[w] = 1;
@@ -412,13 +469,15 @@ std::vector<std::string> RefineOptions::validate() const {
   if (!(max_normal_deviation_deg >= 0 && max_normal_deviation_deg <= 180))
     errors.push_back("refine normal deviation must be in [0, 180] degrees");
   if (rounds < 0 || rounds > 10) errors.push_back("refine rounds must be in [0, 10]");
+  if (!(sliver_deg >= 0 && sliver_deg <= 30))
+    errors.push_back("sliver angle must be in [0, 30] degrees");
   return errors;
 }
 
 RefineStats insert_unused_points(std::span<const Vec3> points, const LocalFrames& frames,
                                  const PointGrid& grid, FrontResult& front,
                                  const RefineOptions& options) {
-  if (!options.enabled || front.outliers.empty() || front.triangles.empty()) return {};
+  if (!options.enabled || front.triangles.empty()) return {};
   Refiner r(points, frames, grid, front, options);
   return r.run();
 }

@@ -191,3 +191,50 @@ TEST_CASE("refine: a bevelled sharp edge gets its feature row back, with edges a
   }
   CHECK(in_a_face == r.mesh.triangles.size());
 }
+
+TEST_CASE("refine: a sliver is flipped away, topology kept; sliver_deg 0 leaves it", "[recon][refine]") {
+  // A flat quad u, y, v, x whose diagonal u-v passes just below x: triangle (u, v, x) has
+  // corners of about 5.7 degrees.
+  Scene s;
+  const Vec3 nz = Vec3::UnitZ();
+  const std::uint32_t u = s.add(Vec3(0, 0, 0), nz), y = s.add(Vec3(1, -1, 0), nz),
+                      v = s.add(Vec3(2, 0, 0), nz), x = s.add(Vec3(1, 0.1, 0), nz);
+  // A ring of triangles around the quad, so the flip is an interior one.
+  const std::uint32_t far_n = s.add(Vec3(1, 1.2, 0), nz), far_s = s.add(Vec3(1, -2, 0), nz);
+  s.tri(u, v, x, nz);
+  s.tri(v, u, y, nz);
+  s.tri(x, v, far_n, nz);
+  s.tri(u, x, far_n, nz);
+  s.tri(y, v, far_s, nz);
+  s.tri(u, y, far_s, nz);
+  const auto before = analyze(Mesh{s.points, s.triangles});
+  REQUIRE(before.min_angle_deg < 6);
+  const auto r = s.refine();
+  require_valid(r.mesh);
+  const auto rep = analyze(r.mesh);
+  CHECK(r.stats.sliver_flips >= 1);
+  CHECK(rep.min_angle_deg > 15);  // the ring's own smallest corner is 18.4
+  CHECK(rep.triangles == before.triangles);
+  CHECK(rep.boundary_loops == before.boundary_loops);
+  CHECK(rep.genus == before.genus);
+  bool has_xy = false;
+  for (const Triangle& t : r.mesh.triangles)
+    for (int k = 0; k < 3; ++k)
+      has_xy |= (t[k] == x && t[(k + 1) % 3] == y) || (t[k] == y && t[(k + 1) % 3] == x);
+  CHECK(has_xy);
+
+  scanmesh::recon::RefineOptions off;
+  off.sliver_deg = 0;
+  LocalFrames frames;
+  frames.normal = s.normals;
+  frames.spacing.assign(s.points.size(), 1.0f);
+  frames.flatness.assign(s.points.size(), 0.0f);
+  PointGrid grid;
+  grid.build(s.points, 3.6);
+  FrontResult front;
+  front.triangles = s.triangles;
+  front.state.assign(s.points.size(), VertexState::kDone);
+  const auto stats = insert_unused_points(s.points, frames, grid, front, off);
+  CHECK(stats.flips == 0);
+  CHECK(front.triangles == s.triangles);
+}

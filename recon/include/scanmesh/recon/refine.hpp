@@ -27,13 +27,18 @@ struct RefineOptions {
   int rounds = 2;
   /// Flip edges around the inserted points (bending / Delaunay criterion).
   bool flip = true;
+  /// Triangles with a corner under this many degrees (slivers, mostly from closing gaps and
+  /// fan repairs) get the same flips; 0 = off.
+  double sliver_deg = 10;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
 struct RefineStats {
   std::size_t inserted = 0;     ///< points put into the mesh
   std::size_t edge_splits = 0;  ///< of them, by splitting an edge (the others split a triangle)
-  std::size_t flips = 0;        ///< edges flipped afterwards
+  std::size_t flips = 0;        ///< edges flipped afterwards (all)
+  std::size_t sliver_flips = 0; ///< of them, to mend slivers
+  std::size_t slivers = 0;      ///< triangles found with a corner under sliver_deg
 };
 
 /// Puts points the front never reached (`front.outliers`) into the mesh when they lie just
