@@ -84,6 +84,11 @@ class Refiner {
     const double l = n.norm();
     return l > 0 ? Vec3(n / l) : Vec3::Zero();
   }
+  std::vector<std::uint32_t> find_slivers();
+  void list_triangles_near(const std::vector<std::uint32_t>& slivers);
+  std::vector<std::uint32_t> insert_left_out();
+  void flip_around(const std::vector<std::uint32_t>& inserted);
+  void mend_slivers(const std::vector<std::uint32_t>& slivers);
   bool try_insert(std::uint32_t p);
   bool try_flip(std::uint32_t u, std::uint32_t v);
   void improve_around(std::uint32_t p);
@@ -108,49 +113,75 @@ class Refiner {
 };
 
 RefineStats Refiner::run() {
+  touched_.assign(p_.size(), 0);
+  const std::vector<std::uint32_t> slivers = find_slivers();
+  list_triangles_near(slivers);
+  const std::vector<std::uint32_t> inserted = insert_left_out();
+  flip_around(inserted);
+  mend_slivers(slivers);
+  for (std::uint32_t q : inserted) {
+    // A vertex on a boundary edge of the mesh stays a boundary vertex.
+    bool open = false;
+    for (std::uint32_t t : around(q)) {
+      const Triangle& tr = tris_[t];
+      const int i = corner_of(tr, q);
+      if (find_tri(tr[(i + 1) % 3], q) == kNone) open = true;
+    }
+    fr_.state[q] = open ? VertexState::kBoundary : VertexState::kDone;
+  }
+  stats_.inserted = inserted.size();
+#ifndef NDEBUG
+  for (std::uint32_t v = 0; v < p_.size(); ++v)
+    if (complete(v)) assert(single_fan(v));
+#endif
+  return stats_;
+}
+
+std::vector<std::uint32_t> Refiner::find_slivers() {
+  // A corner under sliver_deg, tested on squared lengths (no root).
+  std::vector<std::uint32_t> slivers;
+  if (!(o_.sliver_deg > 0)) return slivers;
+  const double c = std::cos(o_.sliver_deg * std::numbers::pi / 180), c2 = c * c;
+  for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+    const Triangle& tr = tris_[t];
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 u = p_[tr[(k + 1) % 3]] - p_[tr[k]], w = p_[tr[(k + 2) % 3]] - p_[tr[k]];
+      const double d = u.dot(w);
+      if (d > 0 && d * d > c2 * u.squaredNorm() * w.squaredNorm()) {
+        slivers.push_back(t);
+        break;
+      }
+    }
+  }
+  stats_.slivers = slivers.size();
+  return slivers;
+}
+
+void Refiner::list_triangles_near(const std::vector<std::uint32_t>& slivers) {
+  // Every used vertex near a left-out point or a sliver gets its full triangle list (one pass
+  // over the triangles), far enough around that the triangles an insertion and its flips touch
+  // (edges are at most a few spacings long) have all their corners listed; an operation that
+  // would touch an unlisted vertex is skipped.
   const std::size_t n = p_.size();
-  std::vector<std::uint8_t> used(n, 0);
-  for (std::uint32_t v = 0; v < n; ++v) used[v] = fr_.state[v] != VertexState::kOutlier ? 1 : 0;
-  touched_.assign(n, 0);
-  // Every used vertex near a left-out point gets its full triangle list (one pass over the
-  // triangles), far enough around it that the triangles an insertion and its flips touch (edges
-  // are at most a few spacings long) have all their corners listed; an operation that would
-  // touch an unlisted vertex is skipped.
   std::vector<std::uint8_t> mark(n, 0);
   auto mark_around = [&](std::uint32_t q, double r) {
     grid_.for_each_range_within(p_[q], r, [&](std::uint32_t first, std::uint32_t last) {
       for (std::uint32_t s = first; s < last; ++s) {
         const std::uint32_t j = grid_.order()[s];
-        if (used[j] && (p_[j] - p_[q]).squaredNorm() <= r * r) mark[j] = 1;
+        if (fr_.state[j] != VertexState::kOutlier && (p_[j] - p_[q]).squaredNorm() <= r * r)
+          mark[j] = 1;
       }
     });
   };
-  for (std::uint32_t q : fr_.outliers) mark_around(q, (o_.search_factor + kListReach) * f_.spacing[q]);
-  // Slivers (a corner under sliver_deg; tested on squared lengths, no root), and the vertices
-  // around them.
-  std::vector<std::uint32_t> slivers;
-  if (o_.sliver_deg > 0) {
-    const double c = std::cos(o_.sliver_deg * std::numbers::pi / 180), c2 = c * c;
-    for (std::uint32_t t = 0; t < tris_.size(); ++t) {
-      const Triangle& tr = tris_[t];
-      for (int k = 0; k < 3; ++k) {
-        const Vec3 u = p_[tr[(k + 1) % 3]] - p_[tr[k]], w = p_[tr[(k + 2) % 3]] - p_[tr[k]];
-        const double d = u.dot(w);
-        if (d > 0 && d * d > c2 * u.squaredNorm() * w.squaredNorm()) {
-          slivers.push_back(t);
-          break;
-        }
-      }
-    }
-    // Flips reach one edge beyond the sliver's corners (the quads' far corners): mark that far.
-    for (std::uint32_t t : slivers) {
-      const Triangle& tr = tris_[t];
-      const double longest = std::sqrt(std::max({(p_[tr[0]] - p_[tr[1]]).squaredNorm(),
-                                                 (p_[tr[1]] - p_[tr[2]]).squaredNorm(),
-                                                 (p_[tr[2]] - p_[tr[0]]).squaredNorm()}));
-      for (std::uint32_t v : tr) mark_around(v, std::max(1.2 * longest, 2.0 * f_.spacing[v]));
-    }
-    stats_.slivers = slivers.size();
+  for (std::uint32_t q : fr_.outliers)
+    mark_around(q, (o_.search_factor + kListReach) * f_.spacing[q]);
+  // Flips reach one edge beyond a sliver's corners (the quads' far corners): mark that far.
+  for (std::uint32_t t : slivers) {
+    const Triangle& tr = tris_[t];
+    const double longest = std::sqrt(std::max({(p_[tr[0]] - p_[tr[1]]).squaredNorm(),
+                                               (p_[tr[1]] - p_[tr[2]]).squaredNorm(),
+                                               (p_[tr[2]] - p_[tr[0]]).squaredNorm()}));
+    for (std::uint32_t v : tr) mark_around(v, std::max(1.2 * longest, 2.0 * f_.spacing[v]));
   }
   slot_.assign(n, kNone);
   for (std::uint32_t v = 0; v < n; ++v)
@@ -158,29 +189,31 @@ RefineStats Refiner::run() {
   for (std::uint32_t t = 0; t < tris_.size(); ++t)
     for (std::uint32_t v : tris_[t])
       if (mark[v]) link(v, t);
-  std::vector<std::uint8_t>().swap(mark);
+}
 
+std::vector<std::uint32_t> Refiner::insert_left_out() {
+  // A few rounds: an insertion can bring a neighbour within reach. fr_.outliers keeps the
+  // points still left out.
   std::vector<std::uint32_t> left = fr_.outliers, inserted;
   for (int round = 0; round < o_.rounds && !left.empty(); ++round) {
     std::vector<std::uint32_t> still;
-    for (std::uint32_t q : left) {
-      if (try_insert(q)) {
-        inserted.push_back(q);
-        used[q] = 1;
-      } else {
-        still.push_back(q);
-      }
-    }
-    if (still.size() == left.size()) break;
+    for (std::uint32_t q : left) (try_insert(q) ? inserted : still).push_back(q);
+    const bool progress = still.size() < left.size();
     left.swap(still);
+    if (!progress) break;
   }
-  // Flip around the new vertices until nothing improves (a few passes at most).
-  // Later passes revisit only the points whose neighbourhood a flip changed.
+  fr_.outliers = std::move(left);
+  return inserted;
+}
+
+void Refiner::flip_around(const std::vector<std::uint32_t>& inserted) {
+  // Flip around the new vertices until nothing improves (a few passes at most); later passes
+  // revisit only the points whose neighbourhood a flip changed.
   for (int pass = 0; pass < 4; ++pass) {
     const std::size_t before = stats_.flips;
     std::vector<std::uint8_t> changed;
     changed.swap(touched_);
-    touched_.assign(n, 0);
+    touched_.assign(p_.size(), 0);
     for (std::uint32_t q : inserted) {
       bool near_change = pass == 0 || changed[q] != 0;
       for (std::size_t k = 0; k < around(q).size() && !near_change; ++k)
@@ -189,8 +222,12 @@ RefineStats Refiner::run() {
     }
     if (stats_.flips == before) break;
   }
-  // Slivers: flip their edges, longest first, where that improves the shape (flat) or lowers
-  // the bending; each flip queues the quad's outer edges.
+}
+
+void Refiner::mend_slivers(const std::vector<std::uint32_t>& slivers) {
+  // Flip their edges, longest first, where that improves the shape (flat) or lowers the
+  // bending, or mends the sliver at a small cost in bending; each flip queues the quad's outer
+  // edges.
   for (int pass = 0; pass < 2 && o_.flip && !slivers.empty(); ++pass) {
     const std::size_t before = stats_.flips;
     for (std::uint32_t t : slivers) {
@@ -216,23 +253,6 @@ RefineStats Refiner::run() {
     }
     if (stats_.flips == before) break;
   }
-  for (std::uint32_t q : inserted) {
-    // A vertex on a boundary edge of the mesh stays a boundary vertex.
-    bool open = false;
-    for (std::uint32_t t : around(q)) {
-      const Triangle& tr = tris_[t];
-      const int i = corner_of(tr, q);
-      if (find_tri(tr[(i + 1) % 3], q) == kNone) open = true;
-    }
-    fr_.state[q] = open ? VertexState::kBoundary : VertexState::kDone;
-  }
-  fr_.outliers = std::move(left);
-  stats_.inserted = inserted.size();
-#ifndef NDEBUG
-  for (std::uint32_t v = 0; v < n; ++v)
-    if (complete(v)) assert(single_fan(v));
-#endif
-  return stats_;
 }
 
 #ifndef NDEBUG
