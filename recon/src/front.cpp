@@ -1243,7 +1243,8 @@ void Builder::orient_components() {
     const VertexTriangles adj(n, tris_);
     const std::vector<std::uint32_t>& start = adj.start;
     const std::vector<std::uint32_t>& vt = adj.list;
-    for (const Triangle& t : tris_)
+    for (const Triangle& t : tris_) {
+      if (open[comp(t)]) continue;  // one boundary edge is enough (open scans: found at once)
       for (std::size_t k = 0; k < 3; ++k) {
         const std::uint32_t u = t[k], v = t[(k + 1) % 3];
         int uses = 0;
@@ -1253,6 +1254,7 @@ void Builder::orient_components() {
         }
         if (uses == 1) open[comp(t)] = 1;
       }
+    }
   }
   std::vector<Vec3> centroid(ncomp, Vec3::Zero());
   std::vector<double> vol(ncomp, 0.0), count(ncomp, 0.0);
@@ -1279,11 +1281,27 @@ void Builder::orient_components() {
 FrontResult Builder::run() {
   const std::size_t n = p_.size();
   // Seeds: flattest points first (index breaks ties, so the order is deterministic).
+  // The order of std::sort by (flatness, index), as a stable two-pass radix sort on the bits of
+  // the flatness (non-negative floats order like their bit patterns; -0 is made +0).
   std::vector<std::uint32_t> order(n);
-  for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](std::uint32_t l, std::uint32_t r) {
-    return f_.flatness[l] != f_.flatness[r] ? f_.flatness[l] < f_.flatness[r] : l < r;
-  });
+  {
+    std::vector<std::uint32_t> key(n), tmp(n);
+    for (std::uint32_t i = 0; i < n; ++i) key[i] = std::bit_cast<std::uint32_t>(f_.flatness[i] + 0.0f);
+    for (std::uint32_t i = 0; i < n; ++i) tmp[i] = i;
+    std::vector<std::uint32_t> count(1u << 16);
+    for (int shift = 0; shift < 32; shift += 16) {
+      std::fill(count.begin(), count.end(), 0u);
+      for (std::uint32_t i : tmp) ++count[(key[i] >> shift) & 0xffffu];
+      std::uint32_t sum = 0;
+      for (std::uint32_t& c : count) {
+        const std::uint32_t here = c;
+        c = sum;
+        sum += here;
+      }
+      for (std::uint32_t i : tmp) order[count[(key[i] >> shift) & 0xffffu]++] = i;
+      if (shift == 0) tmp.swap(order);
+    }
+  }
   for (std::uint32_t s : order) {
     if (state_[s] != VertexState::kFree) continue;
     if (try_seed(s)) grow();
