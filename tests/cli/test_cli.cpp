@@ -545,7 +545,9 @@ TEST_CASE("reconstruct: the points the front left out are inserted, --no-insert 
   // The container's sharp edges: the front bevels some of them and leaves the feature rows out.
   TempDir dir;
   const auto cloud = dir / "c.xyz";
-  auto r = run(dir, {"generate", "--part", "container", "--noise", "0.02", "-o", cloud.string()});
+  const auto ref = dir / "c.stl";
+  auto r = run(dir, {"generate", "--part", "container", "--noise", "0.02", "-o", cloud.string(),
+                     "--mesh", ref.string()});
   REQUIRE(r.status == 0);
   const RunResult with = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "a.ply").string(),
                                    "--json"});
@@ -569,4 +571,15 @@ TEST_CASE("reconstruct: the points the front left out are inserted, --no-insert 
     CHECK(j->at("genus") == 2);
   }
   CHECK(a.at("boundary_loops") == b.at("boundary_loops"));
+  // The feature rows put back bring the bevelled corners out to the part again.
+  const RunResult da = run(dir, {"deviation", (dir / "a.ply").string(), "--ref", ref.string(),
+                                 "--json"});
+  const RunResult db = run(dir, {"deviation", (dir / "b.ply").string(), "--ref", ref.string(),
+                                 "--json"});
+  REQUIRE(da.status == 0);
+  REQUIRE(db.status == 0);
+  const json ja = json_of(da), jb = json_of(db);
+  INFO("hausdorff with " << ja.at("hausdorff") << ", without " << jb.at("hausdorff"));
+  CHECK(ja.at("hausdorff").get<double>() < jb.at("hausdorff").get<double>());
+  CHECK(ja.at("ref_to_mesh").at("p95").get<double>() <= jb.at("ref_to_mesh").at("p95").get<double>());
 }
