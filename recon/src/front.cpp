@@ -1280,13 +1280,14 @@ void Builder::orient_components() {
 
 FrontResult Builder::run() {
   const std::size_t n = p_.size();
-  // Seeds: flattest points first (index breaks ties, so the order is deterministic).
-  // The order of std::sort by (flatness, index), as a stable two-pass radix sort on the bits of
-  // the flatness (non-negative floats order like their bit patterns; -0 is made +0).
+  // Seeds: flattest points first (index breaks ties, so the order is deterministic): a stable
+  // two-pass radix sort on the bits of the flatness (non-negative floats order like their bit
+  // patterns; -0 is made +0), which gives the order of a comparison sort by (flatness, index).
   std::vector<std::uint32_t> order(n);
   {
-    std::vector<std::uint32_t> key(n), tmp(n);
-    for (std::uint32_t i = 0; i < n; ++i) key[i] = std::bit_cast<std::uint32_t>(f_.flatness[i] + 0.0f);
+    std::vector<std::uint32_t> key(n), tmp(n);  // tmp: the input of each pass, ascending index
+    for (std::uint32_t i = 0; i < n; ++i)
+      key[i] = std::bit_cast<std::uint32_t>(f_.flatness[i] + 0.0f);
     for (std::uint32_t i = 0; i < n; ++i) tmp[i] = i;
     std::vector<std::uint32_t> count(1u << 16);
     for (int shift = 0; shift < 32; shift += 16) {
