@@ -9,6 +9,8 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/front.hpp"
 
+#include "triangle_shape.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <cassert>
@@ -279,15 +281,7 @@ class Builder {
   }
   /// Cosine of the smallest interior angle of triangle (a, b, c) (1 when degenerate).
   [[nodiscard]] double min_angle_cos(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
-    const Vec3* q[3] = {&p_[a], &p_[b], &p_[c]};
-    double worst = -1;
-    for (int k = 0; k < 3; ++k) {
-      const Vec3 u = *q[(k + 1) % 3] - *q[k], w = *q[(k + 2) % 3] - *q[k];
-      const double den = u.norm() * w.norm();
-      if (den == 0) return 1.0;
-      worst = std::max(worst, u.dot(w) / den);
-    }
-    return worst;
+    return detail::min_angle_cos(p_[a], p_[b], p_[c]);
   }
   [[nodiscard]] Vec3 edge_normal(const FrontEdge& e) const {
     return tri_normal(e.a, e.b, e.opp).normalized();

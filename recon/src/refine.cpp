@@ -2,6 +2,8 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/refine.hpp"
 
+#include "triangle_shape.hpp"
+
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -27,13 +29,7 @@ bool has_directed(const Triangle& t, std::uint32_t a, std::uint32_t b) {
 
 /// Smallest interior angle of triangle (a, b, c), radians (0 when degenerate).
 double min_angle(const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, bc = c - b, ca = a - c;
-  const double lab = ab.norm(), lbc = bc.norm(), lca = ca.norm();
-  if (lab == 0 || lbc == 0 || lca == 0) return 0;
-  const double ca_ = std::clamp(-ca.dot(ab) / (lca * lab), -1.0, 1.0);
-  const double cb_ = std::clamp(-ab.dot(bc) / (lab * lbc), -1.0, 1.0);
-  const double cc_ = std::clamp(-bc.dot(ca) / (lbc * lca), -1.0, 1.0);
-  return std::acos(std::max({ca_, cb_, cc_}));
+  return std::acos(std::clamp(detail::min_angle_cos(a, b, c), -1.0, 1.0));
 }
 
 class Refiner {
@@ -67,11 +63,10 @@ class Refiner {
       if (corner_of(tris_[t], v) == 3) link(v, t);
     tris_[t] = nt;
   }
-  std::uint32_t append(const Triangle& nt) {
+  void append(const Triangle& nt) {
     const auto t = static_cast<std::uint32_t>(tris_.size());
     tris_.push_back(nt);
     for (std::uint32_t v : nt) link(v, t);
-    return t;
   }
   /// The triangle holding directed edge a -> b (a complete), or kNone.
   std::uint32_t find_tri(std::uint32_t a, std::uint32_t b) {

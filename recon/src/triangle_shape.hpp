@@ -1,0 +1,24 @@
+// Internal to recon: the shape of a triangle, shared by the front and the insertion pass.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <algorithm>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::recon::detail {
+
+/// Cosine of the smallest interior angle of triangle (a, b, c) (1 when degenerate).
+inline double min_angle_cos(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3* q[3] = {&a, &b, &c};
+  double worst = -1;
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 u = *q[(k + 1) % 3] - *q[k], w = *q[(k + 2) % 3] - *q[k];
+    const double den = u.norm() * w.norm();
+    if (den == 0) return 1.0;
+    worst = std::max(worst, u.dot(w) / den);
+  }
+  return worst;
+}
+
+}  // namespace scanmesh::recon::detail
