@@ -44,7 +44,8 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
   row_first_cell_.clear();
   dense_.clear();
   table_.clear();
-  ny_ = nz_ = 0;
+  ny_ = nz_ = nx_ = 0;
+  cell_start_.clear();
   if (n == 0) {
     cells_.push_back({0, 0});
     row_first_cell_.push_back(0);
@@ -190,6 +191,7 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
   }
   cells_.push_back({0, static_cast<std::uint32_t>(n)});
   row_first_cell_.push_back(static_cast<std::uint32_t>(cells_.size() - 1));
+  build_cell_starts(coord(hi.x(), 0) + 1);
   if (dense) return;
 
   const std::size_t rows = row_key_.size();
@@ -202,6 +204,27 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
     while (table_[h].key != kEmptyRow) h = (h + 1) & mask_;
     table_[h] = {row_key_[r], {row_first_cell_[r], row_first_cell_[r + 1]}};
   }
+}
+
+void PointGrid::build_cell_starts(std::int64_t nx) {
+  cell_start_.clear();
+  nx_ = 0;
+  const double total = static_cast<double>(nx) * static_cast<double>(ny_) * static_cast<double>(nz_);
+  if (total > static_cast<double>(2 * order_.size() + 4096)) return;  // at most ~8 bytes a point
+  nx_ = nx;
+  const auto cells = static_cast<std::size_t>(total);
+  cell_start_.resize(cells + 1);
+  std::size_t at = 0;
+  for (std::size_t r = 0; r + 1 < row_first_cell_.size(); ++r) {
+    const auto y = static_cast<std::size_t>(row_key_[r] & kMax);
+    const auto z = static_cast<std::size_t>(row_key_[r] >> 21);
+    const std::size_t base = (z * static_cast<std::size_t>(ny_) + y) * static_cast<std::size_t>(nx_);
+    for (std::uint32_t c = row_first_cell_[r]; c < row_first_cell_[r + 1]; ++c) {
+      const std::size_t lin = base + cells_[c].x;
+      while (at <= lin) cell_start_[at++] = cells_[c].first;
+    }
+  }
+  while (at <= cells) cell_start_[at++] = static_cast<std::uint32_t>(order_.size());
 }
 
 }  // namespace scanmesh::recon

@@ -428,7 +428,12 @@ TEST_CASE("PointGrid visits every point within the cell radius, in cell order", 
     std::vector<Vec3> pts;
     double cell;
   };
+  // A compact box (every cell's first slot in one array), a long bar (rows indexed, cells
+  // searched within a row: the box has too many cells) and sparse clusters (hashed rows).
+  std::vector<Vec3> bar = random_box(3000, 4.0, 13);
+  for (Vec3& p : bar) p.x() *= 1000.0;
   const std::vector<Cloud> clouds = {{random_box(3000, 10.0, 10), 0.7},
+                                     {bar, 0.7},
                                      {sparse_clusters(100, 5, 3000.0, 2.0, 11), 1.0}};
   for (const Cloud& c : clouds) {
     recon::PointGrid grid;

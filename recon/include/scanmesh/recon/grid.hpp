@@ -133,6 +133,13 @@ class PointGrid {
   bool row_range(std::int64_t y, std::int64_t z, std::int64_t x0, std::int64_t x1,
                  std::uint32_t& first, std::uint32_t& last) const {
     if (y < 0 || z < 0 || x1 < 0) return false;
+    if (!cell_start_.empty()) {  // direct index over (x, y, z): two loads, no search
+      if (y >= ny_ || z >= nz_ || x0 >= nx_) return false;
+      const std::size_t base = static_cast<std::size_t>((z * ny_ + y) * nx_);
+      first = cell_start_[base + static_cast<std::size_t>(std::max<std::int64_t>(x0, 0))];
+      last = cell_start_[base + static_cast<std::size_t>(std::min(x1, nx_ - 1)) + 1];
+      return first < last;
+    }
     std::uint32_t a = 0, e = 0;
     if (!dense_.empty()) {  // direct index over (y, z)
       if (y >= ny_ || z >= nz_) return false;
@@ -195,6 +202,12 @@ class PointGrid {
   std::vector<RowSpan> dense_;  // index z * ny_ + y
   std::int64_t ny_ = 0, nz_ = 0;
   std::vector<RowEntry> table_;
+  // When the grid's box has at most about two cells a point: the first slot of every cell
+  // (index (z * ny_ + y) * nx_ + x, one past the end closing the last), so that a row's slot
+  // range is two loads. Empty otherwise.
+  std::vector<std::uint32_t> cell_start_;
+  std::int64_t nx_ = 0;
+  void build_cell_starts(std::int64_t nx);
   std::size_t mask_ = 0;
   int shift_ = 63;  // 64 - log2(table size): the hash takes the product's high bits
 };
