@@ -132,14 +132,18 @@ class PointGrid {
   /// Slots of the cells of row (y, z) with x in [x0, x1]; false when there are none.
   bool row_range(std::int64_t y, std::int64_t z, std::int64_t x0, std::int64_t x1,
                  std::uint32_t& first, std::uint32_t& last) const {
+    if (cell_start_.empty()) return row_range_search(y, z, x0, x1, first, last);
+    // Direct index over (x, y, z): two loads, no search (small enough to inline).
+    if (y < 0 || z < 0 || x1 < 0 || y >= ny_ || z >= nz_ || x0 >= nx_) return false;
+    const std::size_t base = static_cast<std::size_t>((z * ny_ + y) * nx_);
+    first = cell_start_[base + static_cast<std::size_t>(std::max<std::int64_t>(x0, 0))];
+    last = cell_start_[base + static_cast<std::size_t>(std::min(x1, nx_ - 1)) + 1];
+    return first < last;
+  }
+  /// row_range through the row tables, when there is no per-cell index.
+  bool row_range_search(std::int64_t y, std::int64_t z, std::int64_t x0, std::int64_t x1,
+                        std::uint32_t& first, std::uint32_t& last) const {
     if (y < 0 || z < 0 || x1 < 0) return false;
-    if (!cell_start_.empty()) {  // direct index over (x, y, z): two loads, no search
-      if (y >= ny_ || z >= nz_ || x0 >= nx_) return false;
-      const std::size_t base = static_cast<std::size_t>((z * ny_ + y) * nx_);
-      first = cell_start_[base + static_cast<std::size_t>(std::max<std::int64_t>(x0, 0))];
-      last = cell_start_[base + static_cast<std::size_t>(std::min(x1, nx_ - 1)) + 1];
-      return first < last;
-    }
     std::uint32_t a = 0, e = 0;
     if (!dense_.empty()) {  // direct index over (y, z)
       if (y >= ny_ || z >= nz_) return false;
