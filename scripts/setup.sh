@@ -9,8 +9,8 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config clang libclang-rt-14-dev
   # geometry core, CLI, tests
   libeigen3-dev catch2 nlohmann-json3-dev libcli11-dev
-  # images (preview and deviation pictures): only the OpenCV modules we link
-  libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
+  # images (preview and deviation pictures): only the OpenCV modules we link; PNG via libpng
+  libopencv-core-dev libopencv-imgproc-dev libpng-dev
   # device layer and daemon
   libboost-dev libboost-system-dev libmodbus-dev libserialport-dev libusb-1.0-0-dev
   libsystemd-dev systemd libtomlplusplus-dev libsqlite3-dev

@@ -10,8 +10,8 @@
 #include <cstring>
 #include <limits>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <png.h>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -246,16 +246,14 @@ void draw_colour_bar(cv::Mat& img, double limit) {
   }
 }
 
-/// Encodes as PNG and writes it under a temporary name beside the target, then renames it into
+/// Encodes as PNG (libpng) and writes it under a temporary name beside the target, then renames it into
 /// place, so no partial file is ever left under the final name.
 void write_png(const cv::Mat& img, const std::filesystem::path& png) {
-  std::vector<uchar> bytes;
+  std::vector<std::uint8_t> bytes;
   try {
-    if (!cv::imencode(".png", img, bytes)) {
-      throw OutputError("cannot write '" + png.string() + "': PNG encoding failed");
-    }
-  } catch (const cv::Exception& e) {
-    throw OutputError("cannot write '" + png.string() + "': PNG encoding failed: " + e.what());
+    bytes = encode_png_bgr(img.ptr<std::uint8_t>(), img.cols, img.rows, img.step[0]);
+  } catch (const OutputError& e) {
+    throw OutputError("cannot write '" + png.string() + "': " + e.what());
   }
   std::filesystem::path tmp = png;
   tmp += ".tmp";
@@ -380,6 +378,31 @@ void render_deviation_png(const recon::Mesh& mesh, const std::vector<double>& ve
       });
   draw_colour_bar(img, lim);
   write_png(img, png);
+}
+
+std::vector<std::uint8_t> encode_png_bgr(const std::uint8_t* bgr, int width, int height,
+                                         std::size_t stride) {
+  if (bgr == nullptr || width <= 0 || height <= 0 || stride < 3 * static_cast<std::size_t>(width) ||
+      stride > static_cast<std::size_t>(std::numeric_limits<png_int_32>::max()))
+    throw OutputError("PNG encoding: no picture or a bad size");
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  image.width = static_cast<png_uint_32>(width);
+  image.height = static_cast<png_uint_32>(height);
+  image.format = PNG_FORMAT_BGR;
+  image.flags = PNG_IMAGE_FLAG_FAST;  // previews: speed over the last per cent of size
+  // One pass into a buffer of the worst-case size (stored blocks), then trimmed.
+  std::vector<std::uint8_t> bytes(PNG_IMAGE_PNG_SIZE_MAX(image));
+  png_alloc_size_t size = bytes.size();
+  // row_stride counts components, which for 8-bit samples are bytes.
+  if (png_image_write_to_memory(&image, bytes.data(), &size, 0, bgr,
+                                static_cast<png_int_32>(stride), nullptr) == 0) {
+    const std::string why = image.message;
+    png_image_free(&image);
+    throw OutputError("PNG encoding failed: " + why);
+  }
+  bytes.resize(size);
+  return bytes;
 }
 
 }  // namespace scanmesh::preview

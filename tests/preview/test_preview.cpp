@@ -1,6 +1,9 @@
-// Smoke tests of the preview renderer: PNGs are written atomically and are valid PNG files of the
-// requested size; write failures are OutputErrors naming the file.
+// Preview renderer: PNGs are written atomically, decode (libpng's reader) to pictures of the
+// requested size that show the mesh and the colour map; the encoder round-trips exactly; write
+// failures are OutputErrors naming the file.
 // SPDX-License-Identifier: MIT
+#include <png.h>
+
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdint>
@@ -88,6 +91,40 @@ void check_png(const fs::path& p, int width, int height) {
   CHECK(be32(20) == static_cast<std::uint32_t>(height));
 }
 
+struct Picture {
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> bgr;  // rows of blue, green, red bytes, no padding
+  [[nodiscard]] const std::uint8_t* at(int x, int y) const {
+    return bgr.data() + 3 * (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+                             static_cast<std::size_t>(x));
+  }
+};
+
+/// Decodes PNG bytes with libpng's reader (independent of the encoder under test).
+Picture decode(const std::vector<unsigned char>& bytes) {
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  REQUIRE(png_image_begin_read_from_memory(&image, bytes.data(), bytes.size()) != 0);
+  image.format = PNG_FORMAT_BGR;
+  Picture pic;
+  pic.width = static_cast<int>(image.width);
+  pic.height = static_cast<int>(image.height);
+  pic.bgr.resize(PNG_IMAGE_SIZE(image));
+  REQUIRE(png_image_finish_read(&image, nullptr, pic.bgr.data(), 0, nullptr) != 0);
+  return pic;
+}
+
+/// Share of pixels that are not the white background.
+double coverage(const Picture& pic) {
+  std::size_t drawn = 0;
+  for (int y = 0; y < pic.height; ++y)
+    for (int x = 0; x < pic.width; ++x) {
+      const std::uint8_t* p = pic.at(x, y);
+      drawn += (p[0] != 255 || p[1] != 255 || p[2] != 255) ? 1 : 0;
+    }
+  return static_cast<double>(drawn) / (static_cast<double>(pic.width) * pic.height);
+}
+
 /// No temporary files left beside the target.
 std::size_t files_in(const fs::path& dir) {
   std::size_t n = 0;
@@ -110,6 +147,17 @@ TEST_CASE("render_mesh_png writes a PNG of the requested size", "[preview]") {
   render_mesh_png(m, png, options);
   check_png(png, options.width_px, options.height_px);
   CHECK(files_in(dir.path()) == 1);
+  {
+    // The torus fills a good part of the frame in greys; the hole shows the bluish back faces.
+    const Picture pic = decode(read_bytes(png));
+    CHECK(pic.width == options.width_px);
+    CHECK(coverage(pic) > 0.1);
+    CHECK(coverage(pic) < 0.9);
+    std::size_t bluish = 0;
+    for (int y = 0; y < pic.height; ++y)
+      for (int x = 0; x < pic.width; ++x) bluish += pic.at(x, y)[0] > pic.at(x, y)[2] + 40 ? 1 : 0;
+    CHECK(bluish > 0);
+  }
 
   // Overwriting works and other sizes are honoured.
   options.width_px = 320;
@@ -127,12 +175,48 @@ TEST_CASE("render_deviation_png writes a PNG with default and explicit limits", 
   for (const Vec3& v : m.vertices) values.push_back(0.01 * v.x() + 0.002 * v.y());
   render_deviation_png(m, values, dir.path() / "dev.png");
   check_png(dir.path() / "dev.png", 1024, 768);
+  {
+    // Deviations of both signs: the picture holds reddish and bluish pixels (the map's ends).
+    const Picture pic = decode(read_bytes(dir.path() / "dev.png"));
+    std::size_t red = 0, blue = 0;
+    for (int y = 0; y < pic.height; ++y)
+      for (int x = 0; x < pic.width; ++x) {
+        const std::uint8_t* p = pic.at(x, y);
+        red += p[2] > p[0] + 80 ? 1 : 0;
+        blue += p[0] > p[2] + 80 ? 1 : 0;
+      }
+    CHECK(red > 1000);
+    CHECK(blue > 1000);
+  }
   render_deviation_png(m, values, dir.path() / "dev_limit.png", {}, 0.005);
   check_png(dir.path() / "dev_limit.png", 1024, 768);
   // All zero: the range falls back to a positive value instead of dividing by zero.
   render_deviation_png(m, std::vector<double>(m.vertices.size(), 0.0), dir.path() / "zero.png");
   check_png(dir.path() / "zero.png", 1024, 768);
   CHECK(files_in(dir.path()) == 3);
+}
+
+TEST_CASE("encode_png_bgr round-trips a picture exactly, padded rows included", "[preview]") {
+  const int w = 37, h = 23;
+  const std::size_t stride = 3 * w + 5;  // OpenCV rows may be padded
+  std::vector<std::uint8_t> src(stride * h, 0xEE);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < 3 * w; ++x) src[static_cast<std::size_t>(y) * stride + x] = static_cast<std::uint8_t>(byte(rng));
+  const std::vector<std::uint8_t> bytes = scanmesh::preview::encode_png_bgr(src.data(), w, h, stride);
+  const Picture pic = decode({bytes.begin(), bytes.end()});
+  REQUIRE(pic.width == w);
+  REQUIRE(pic.height == h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c)
+        REQUIRE(pic.at(x, y)[c] == src[static_cast<std::size_t>(y) * stride + 3 * x + c]);
+  // Bad sizes are errors, not crashes.
+  using scanmesh::preview::encode_png_bgr;
+  CHECK_THROWS_AS(encode_png_bgr(src.data(), 0, h, stride), scanmesh::OutputError);
+  CHECK_THROWS_AS(encode_png_bgr(src.data(), w, h, 3 * w - 1), scanmesh::OutputError);
+  CHECK_THROWS_AS(encode_png_bgr(nullptr, w, h, stride), scanmesh::OutputError);
 }
 
 TEST_CASE("render: empty mesh still gives a picture", "[preview]") {

@@ -3,6 +3,8 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -32,5 +34,10 @@ void render_mesh_png(const recon::Mesh& mesh, const std::filesystem::path& png,
 void render_deviation_png(const recon::Mesh& mesh, const std::vector<double>& vertex_values,
                           const std::filesystem::path& png, const RenderOptions& options = {},
                           std::optional<double> limit = std::nullopt);
+
+/// PNG bytes (8-bit RGB, libpng) of a `width` x `height` picture given as rows of blue, green,
+/// red bytes, `stride` bytes apart (OpenCV's layout). Throws OutputError when libpng fails.
+std::vector<std::uint8_t> encode_png_bgr(const std::uint8_t* bgr, int width, int height,
+                                         std::size_t stride);
 
 }  // namespace scanmesh::preview
