@@ -246,8 +246,8 @@ void draw_colour_bar(cv::Mat& img, double limit) {
   }
 }
 
-/// Encodes as PNG (libpng) and writes it under a temporary name beside the target, then renames it into
-/// place, so no partial file is ever left under the final name.
+/// Encodes as PNG (libpng) and writes it under a temporary name beside the target, then renames
+/// it into place, so no partial file is ever left under the final name.
 void write_png(const cv::Mat& img, const std::filesystem::path& png) {
   std::vector<std::uint8_t> bytes;
   try {

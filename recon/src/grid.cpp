@@ -1,5 +1,6 @@
 // Uniform grid index: counting sort of points into rows of cells (dense row index) or, for
-// sparse extents, a hash table of cells sorted by key; plus the row look-up structure.
+// sparse extents, a hash table of cells sorted by key; plus the row look-up structure (per-cell
+// first slots when the box is small enough, else the rows' cell lists).
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/grid.hpp"
 
@@ -192,6 +193,7 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
   cells_.push_back({0, static_cast<std::uint32_t>(n)});
   row_first_cell_.push_back(static_cast<std::uint32_t>(cells_.size() - 1));
   build_cell_starts(coord(hi.x(), 0) + 1);
+  if (!cell_start_.empty()) std::vector<RowSpan>().swap(dense_);  // not needed for look-ups
   if (dense) return;
 
   const std::size_t rows = row_key_.size();
@@ -209,8 +211,9 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
 void PointGrid::build_cell_starts(std::int64_t nx) {
   cell_start_.clear();
   nx_ = 0;
-  const double total = static_cast<double>(nx) * static_cast<double>(ny_) * static_cast<double>(nz_);
-  if (total > static_cast<double>(2 * order_.size() + 4096)) return;  // at most ~8 bytes a point
+  const double total =
+      static_cast<double>(nx) * static_cast<double>(ny_) * static_cast<double>(nz_);
+  if (total > static_cast<double>(2 * order_.size() + 4096)) return;  // ~8 bytes a point at most
   nx_ = nx;
   const auto cells = static_cast<std::size_t>(total);
   cell_start_.resize(cells + 1);
@@ -218,7 +221,8 @@ void PointGrid::build_cell_starts(std::int64_t nx) {
   for (std::size_t r = 0; r + 1 < row_first_cell_.size(); ++r) {
     const auto y = static_cast<std::size_t>(row_key_[r] & kMax);
     const auto z = static_cast<std::size_t>(row_key_[r] >> 21);
-    const std::size_t base = (z * static_cast<std::size_t>(ny_) + y) * static_cast<std::size_t>(nx_);
+    const std::size_t base =
+        (z * static_cast<std::size_t>(ny_) + y) * static_cast<std::size_t>(nx_);
     for (std::uint32_t c = row_first_cell_[r]; c < row_first_cell_[r + 1]; ++c) {
       const std::size_t lin = base + cells_[c].x;
       while (at <= lin) cell_start_[at++] = cells_[c].first;

@@ -203,8 +203,10 @@ TEST_CASE("encode_png_bgr round-trips a picture exactly, padded rows included", 
   std::mt19937 rng(3);
   std::uniform_int_distribution<int> byte(0, 255);
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < 3 * w; ++x) src[static_cast<std::size_t>(y) * stride + x] = static_cast<std::uint8_t>(byte(rng));
-  const std::vector<std::uint8_t> bytes = scanmesh::preview::encode_png_bgr(src.data(), w, h, stride);
+    for (int x = 0; x < 3 * w; ++x)
+      src[static_cast<std::size_t>(y) * stride + x] = static_cast<std::uint8_t>(byte(rng));
+  const std::vector<std::uint8_t> bytes =
+      scanmesh::preview::encode_png_bgr(src.data(), w, h, stride);
   const Picture pic = decode({bytes.begin(), bytes.end()});
   REQUIRE(pic.width == w);
   REQUIRE(pic.height == h);

@@ -15,7 +15,9 @@ namespace scanmesh::recon {
 
 /// Points grouped by cubic cell. Occupied cells are kept in key order (z, then y, then x), and
 /// a row of cells (same y and z) is found through a dense (y, z) array, or an open-addressing
-/// table when that array would be large. The cells of a row are contiguous and sorted by x, and
+/// table when that array would be large; when the grid's box has at most about two cells a
+/// point, every cell's first slot is stored instead, so a row's range needs no search within the
+/// row. The cells of a row are contiguous and sorted by x, and
 /// so are their points in `order()`: a block of cells x0..x1 of one row is one contiguous slot
 /// range. A ring query therefore costs one look-up per row instead of one per cell, and
 /// for_each_range_within skips the rows and cells out of reach.
