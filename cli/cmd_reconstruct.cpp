@@ -2,6 +2,7 @@
 // SPDX-License-Identifier: MIT
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -30,6 +31,7 @@ struct ReconstructArgs {
   bool ascii = false;
   std::string outliers_file;
   bool no_insert = false;
+  bool progress = false;
 };
 
 /// Parses --cube: "auto", "none" or a positive size in input units.
@@ -105,6 +107,15 @@ int run_reconstruct(const ReconstructArgs& args) {
     throw InputError(names + ": no points in the input");
   }
   auto last = Clock::now();
+  // --progress: one line on stderr as each stage starts (stdout stays the summary or the JSON).
+  auto report = [&](std::string_view what) {
+    if (!args.progress) return;
+    std::fprintf(stderr, "scanmesh: %8.3f s  %.*s\n",
+                 std::chrono::duration<double>(Clock::now() - t0).count(),
+                 static_cast<int>(what.size()), what.data());
+    std::fflush(stderr);
+  };
+  report("read " + std::to_string(points.size()) + " points");
   std::map<std::string, double> seconds;
   seconds["read"] = std::chrono::duration<double>(last - t0).count();
   std::string current;
@@ -113,15 +124,18 @@ int run_reconstruct(const ReconstructArgs& args) {
     if (!current.empty()) seconds[current] += std::chrono::duration<double>(now - last).count();
     last = now;
     current = stage == "done" ? "" : std::string(stage);
+    if (stage != "done") report(stage);
   };
   recon::ReconstructResult res = recon::reconstruct(points, opt, observer);
 
   auto t = Clock::now();
+  report("write " + args.output);
   meshio::write_mesh(res.mesh, args.output, meshio::WriteOptions{args.ascii});
   if (!args.outliers_file.empty()) meshio::write_points_xyz(res.outliers, args.outliers_file);
   seconds["write"] = std::chrono::duration<double>(Clock::now() - t).count();
   const double total = std::chrono::duration<double>(Clock::now() - t0).count();
   const recon::MeshReport rep = recon::analyze(res.mesh);
+  report("done");
 
   if (args.json) {
     nlohmann::json j;
@@ -165,6 +179,7 @@ int run_reconstruct(const ReconstructArgs& args) {
               << "triangles        " << res.mesh.triangles.size() << "\n"
               << "boundary loops   " << rep.boundary_loops << "\n"
               << "components       " << rep.components << "\n"
+              << "genus            " << rep.genus << "\n"
               << "inserted points  " << res.refine.inserted << " (left out by the front)\n"
               << "outliers         " << res.outliers.size() << "\n"
               << "manifold         "
@@ -206,6 +221,8 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");
   cmd->add_flag("--no-insert", args->no_insert,
                 "leave the points the front did not reach out (no insertion afterwards)");
+  cmd->add_flag("--progress", args->progress,
+                "print each stage on stderr as it starts, with the seconds elapsed");
   cmd->callback([args, &run] { run = [args] { return run_reconstruct(*args); }; });
 }
 

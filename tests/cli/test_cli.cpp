@@ -540,6 +540,43 @@ TEST_CASE("the demo's scan of the container reconstructs to a closed manifold", 
   CHECK(d.at("hausdorff").get<double>() < 1.0);
 }
 
+TEST_CASE("reconstruct --progress: stages on stderr in order, stdout unchanged", "[cli]") {
+  TempDir dir;
+  const auto cloud = dir / "s.xyz";
+  auto r = run(dir, {"generate", "--part", "sphere", "-o", cloud.string()});
+  REQUIRE(r.status == 0);
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "s.stl").string(), "--json",
+                "--progress"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);  // stdout is still exactly one JSON object
+  CHECK(j.at("boundary_loops") == 0);
+  // "scanmesh: <seconds> s  <stage...>" lines, one per stage, times never going back.
+  std::istringstream lines(r.err);
+  std::string line;
+  std::vector<std::string> stages;
+  double previous = -1;
+  while (std::getline(lines, line)) {
+    REQUIRE(line.rfind("scanmesh: ", 0) == 0);
+    std::istringstream fields(line.substr(10));
+    double t = -1;
+    std::string unit, stage;
+    fields >> t >> unit >> stage;
+    CHECK(unit == "s");
+    CHECK(t >= previous);
+    previous = t;
+    stages.push_back(stage);
+  }
+  const std::vector<std::string> expected{"read",   "reduce", "normals", "front",
+                                          "refine", "output", "write",   "done"};
+  CHECK(stages == expected);
+  // Without the flag nothing goes to stderr.
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "t.stl").string()});
+  REQUIRE(r.status == 0);
+  CHECK(r.err.empty());
+  CHECK_THAT(r.out, Catch::Contains("genus            0"));
+}
+
 TEST_CASE("reconstruct: the points the front left out are inserted, --no-insert keeps them out",
           "[cli]") {
   // The container's sharp edges: the front bevels some of them and leaves the feature rows out.
