@@ -32,6 +32,7 @@ struct ReconstructArgs {
   std::string outliers_file;
   bool no_insert = false;
   bool progress = false;
+  std::size_t fill_holes = 0;
 };
 
 /// Parses --cube: "auto", "none" or a positive size in input units.
@@ -96,6 +97,7 @@ int run_reconstruct(const ReconstructArgs& args) {
   opt.front.min_angle_deg = args.min_angle_deg;
   opt.front.relaxed_min_angle_deg = std::min(opt.front.relaxed_min_angle_deg, args.min_angle_deg);
   opt.refine.enabled = !args.no_insert;
+  opt.fill.max_edges = args.fill_holes;
   if (args.inputs.empty() && args.conf.empty())
     throw ConfigError("no INPUT given (and no --conf to take the scans from)");
   if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
@@ -163,6 +165,8 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["inserted_by_edge_split"] = res.refine.edge_splits;
     j["refine_flips"] = res.refine.flips;
     j["sliver_flips"] = res.refine.sliver_flips;
+    j["filled_holes"] = res.fill.filled;
+    j["fill_triangles"] = res.fill.triangles;
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;
@@ -180,7 +184,11 @@ int run_reconstruct(const ReconstructArgs& args) {
               << "boundary loops   " << rep.boundary_loops << "\n"
               << "components       " << rep.components << "\n"
               << "genus            " << rep.genus << "\n"
-              << "inserted points  " << res.refine.inserted << " (left out by the front)\n"
+              << "inserted points  " << res.refine.inserted << " (left out by the front)\n";
+    if (args.fill_holes > 0)
+      std::cout << "filled holes     " << res.fill.filled << " (" << res.fill.triangles
+                << " triangles; " << res.fill.kept << " loops kept)\n";
+    std::cout
               << "outliers         " << res.outliers.size() << "\n"
               << "manifold         "
               << (rep.non_manifold_edges == 0 && rep.non_manifold_vertices == 0 ? "yes" : "NO")
@@ -221,6 +229,10 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");
   cmd->add_flag("--no-insert", args->no_insert,
                 "leave the points the front did not reach out (no insertion afterwards)");
+  cmd->add_option("--fill-holes", args->fill_holes,
+                  "close the boundary loops of at most N edges (minimum-weight patch of the "
+                  "loop's vertices); default 0: every hole is kept")
+      ->check(CLI::Range(std::size_t{0}, recon::FillOptions::kLimit));
   cmd->add_flag("--progress", args->progress,
                 "print each stage on stderr as it starts, with the seconds elapsed");
   cmd->callback([args, &run] { run = [args] { return run_reconstruct(*args); }; });

@@ -74,10 +74,11 @@ struct BoundaryEdge {
 /// to a vertex already on the current path the cycle is cut off as one loop, so a vertex where
 /// two holes touch gives two loops. A walk that dead-ends (odd boundary degree, only possible
 /// around non-manifold edges) is reported as one open loop. Each edge lands in exactly one loop.
-std::vector<std::size_t> boundary_loop_lengths(const std::vector<BoundaryEdge>& edges,
-                                               std::size_t vertex_count) {
-  std::vector<std::size_t> lengths;
-  if (edges.empty()) return lengths;
+/// A closed loop lists each of its vertices once, starting anywhere.
+std::vector<BoundaryLoop> walk_boundary_loops(const std::vector<BoundaryEdge>& edges,
+                                              std::size_t vertex_count) {
+  std::vector<BoundaryLoop> loops;
+  if (edges.empty()) return loops;
   // CSR adjacency: for each vertex, the boundary edges incident to it.
   std::vector<std::uint32_t> offset(vertex_count + 1, 0);
   for (const BoundaryEdge& e : edges) {
@@ -121,7 +122,7 @@ std::vector<std::size_t> boundary_loop_lengths(const std::vector<BoundaryEdge>& 
       const std::uint32_t e = next_edge(current);
       if (e == kNone) {
         // Dead end: what is left on the path is an open chain.
-        if (path.size() > 1) lengths.push_back(path.size() - 1);
+        if (path.size() > 1) loops.push_back({path, false});
         for (std::uint32_t v : path) path_pos[v] = kNone;
         path.clear();
         break;
@@ -131,7 +132,7 @@ std::vector<std::size_t> boundary_loop_lengths(const std::vector<BoundaryEdge>& 
       if (path_pos[next] != kNone) {
         // Closed a cycle: cut it off the path (edges after position path_pos[next]).
         const std::uint32_t at = path_pos[next];
-        lengths.push_back(path.size() - at);
+        loops.push_back({std::vector<std::uint32_t>(path.begin() + at, path.end()), true});
         for (std::size_t i = at + 1; i < path.size(); ++i) path_pos[path[i]] = kNone;
         path.resize(at + 1);
         current = next;
@@ -147,13 +148,12 @@ std::vector<std::size_t> boundary_loop_lengths(const std::vector<BoundaryEdge>& 
       }
     }
   }
-  std::sort(lengths.begin(), lengths.end(), std::greater<>());
-  return lengths;
+  return loops;
 }
 
 }  // namespace
 
-MeshReport analyze(const Mesh& mesh) {
+MeshReport analyze(const Mesh& mesh, bool keep_loops) {
   MeshReport r;
   const std::size_t nv = mesh.vertices.size();
   const std::size_t nt = mesh.triangles.size();
@@ -341,8 +341,12 @@ MeshReport analyze(const Mesh& mesh) {
     if (triangle_sets.find(t) == t) ++r.components;
   }
 
-  r.boundary_loop_lengths = boundary_loop_lengths(boundary, nv);
+  std::vector<BoundaryLoop> loops = walk_boundary_loops(boundary, nv);
+  for (const BoundaryLoop& l : loops)
+    r.boundary_loop_lengths.push_back(l.closed ? l.vertices.size() : l.vertices.size() - 1);
+  std::sort(r.boundary_loop_lengths.begin(), r.boundary_loop_lengths.end(), std::greater<>());
   r.boundary_loops = r.boundary_loop_lengths.size();
+  if (keep_loops) r.loops = std::move(loops);
 
   r.euler_characteristic = static_cast<long>(r.referenced_vertices) - static_cast<long>(r.edges) +
                            static_cast<long>(faces);

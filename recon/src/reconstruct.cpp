@@ -52,6 +52,7 @@ void check_input(std::span<const Vec3> points) {
 std::vector<std::string> ReconstructOptions::validate() const {
   std::vector<std::string> errors = front.validate();
   for (auto& e : refine.validate()) errors.push_back(std::move(e));
+  for (auto& e : fill.validate()) errors.push_back(std::move(e));
   if (cube_mode == CubeMode::kFixed && !(cube_mm > 0 && std::isfinite(cube_mm)))
     errors.push_back("cube size must be a positive number");
   if (normals.neighbours < 6 || normals.neighbours > 64)
@@ -160,6 +161,10 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.edge_evaluations = fr.edge_evaluations;
   res.points_scanned = fr.points_scanned;
   res.seed_attempts = fr.seed_attempts;
+  if (options.fill.max_edges > 0) {
+    stage("fill");
+    res.fill = fill_holes(res.mesh, options.fill);
+  }
   stage("done");
   return res;
 }

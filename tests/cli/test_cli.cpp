@@ -23,6 +23,7 @@
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/mesh.hpp"
 #include "support/process.hpp"
+#include "support/shapes.hpp"
 #include "support/temp_dir.hpp"
 
 namespace {
@@ -538,6 +539,46 @@ TEST_CASE("the demo's scan of the container reconstructs to a closed manifold", 
   const json d = json_of(r);
   CHECK(d.at("mesh_to_ref").at("p95").get<double>() < 0.1);  // spacing 0.5 mm, noise 0.02
   CHECK(d.at("hausdorff").get<double>() < 1.0);
+}
+
+TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only on request",
+          "[cli]") {
+  TempDir dir;
+  const auto cloud = dir / "cap.xyz";
+  {
+    std::string text;
+    for (const auto& p : scanmesh::test::sphere_points(4000, 10.0))
+      if (p.z() < 7) text += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " +
+                             std::to_string(p.z()) + "\n";
+    spit(cloud, text);
+  }
+  auto r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "open.ply").string(), "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json open = json_of(r);
+  REQUIRE(open.at("boundary_loops") == 1);
+  CHECK(open.at("filled_holes") == 0);
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "closed.ply").string(), "--json",
+                "--fill-holes", "500"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json closed = json_of(r);
+  CHECK(closed.at("boundary_loops") == 0);
+  CHECK(closed.at("filled_holes") == 1);
+  CHECK(closed.at("genus") == 0);
+  CHECK(closed.at("non_manifold_edges") == 0);
+  CHECK(closed.at("orientation_consistent") == true);
+  CHECK(closed.at("triangles").get<std::size_t>() ==
+        open.at("triangles").get<std::size_t>() + closed.at("fill_triangles").get<std::size_t>());
+  // The written file is the closed one.
+  r = run(dir, {"inspect", (dir / "closed.ply").string(), "--json"});
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("boundary_loops") == 0);
+  // Beyond the limit: a usage error, nothing written.
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "x.ply").string(), "--fill-holes",
+                "501"});
+  CHECK(r.status == 2);
+  CHECK_FALSE(std::filesystem::exists(dir / "x.ply"));
 }
 
 TEST_CASE("reconstruct --progress: stages on stderr in order, stdout unchanged", "[cli]") {

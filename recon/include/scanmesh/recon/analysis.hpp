@@ -10,6 +10,13 @@
 
 namespace scanmesh::recon {
 
+/// A boundary loop's vertices, in the direction its triangles run along it (for a consistently
+/// oriented mesh); `closed` is false only for a chain that dead-ends at non-manifold edges.
+struct BoundaryLoop {
+  std::vector<std::uint32_t> vertices;
+  bool closed = true;
+};
+
 struct MeshReport {
   std::size_t vertices = 0;            ///< vertices in the vertex array
   std::size_t referenced_vertices = 0; ///< vertices used by at least one triangle
@@ -33,8 +40,10 @@ struct MeshReport {
   double frac_min_angle_below_10 = 0, frac_min_angle_below_20 = 0;
   double mean_edge_length = 0, max_edge_length = 0;
   double signed_volume = 0;              ///< > 0 when closed and outward oriented
+  std::vector<BoundaryLoop> loops;       ///< the loops themselves, with analyze(mesh, true)
 };
 
-MeshReport analyze(const Mesh& mesh);
+/// With keep_loops the report also lists every boundary loop's vertices.
+MeshReport analyze(const Mesh& mesh, bool keep_loops = false);
 
 }  // namespace scanmesh::recon

@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/front.hpp"
 #include "scanmesh/recon/mesh.hpp"
 #include "scanmesh/recon/reduce.hpp"
@@ -31,6 +32,8 @@ struct ReconstructOptions {
   FrontOptions front;
   NormalOptions normals;
   RefineOptions refine;
+  /// Off by default: real holes stay open. On request, small loops are closed at the end.
+  FillOptions fill;
   /// Reports every bad field at once (empty when valid).
   [[nodiscard]] std::vector<std::string> validate() const;
 };
@@ -44,11 +47,12 @@ struct ReconstructResult {
   std::vector<Vec3> outliers;      ///< reduced points the front never reached
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
   RefineStats refine;  ///< points the front left out that were inserted afterwards
+  FillStats fill;      ///< holes closed on request (options.fill)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
 };
 
-/// Called with the name of each stage when it starts ("reduce", "normals", "front", "refine", "output")
-/// and with "done" at the end.
+/// Called with the name of each stage when it starts ("reduce", "normals", "front", "refine",
+/// "output", and "fill" when holes are to be closed) and with "done" at the end.
 using StageObserver = std::function<void(std::string_view stage)>;
 
 /// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,

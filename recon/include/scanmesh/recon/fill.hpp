@@ -1,0 +1,35 @@
+// Hole filling on request: boundary loops up to a size are closed by a minimum-weight
+// triangulation of the loop (Liepa 2003: smallest largest dihedral angle, then smallest area).
+// Pure: no I/O, no globals.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::recon {
+
+struct FillOptions {
+  /// Loops with at most this many edges are closed; 0 closes none (every hole is kept).
+  std::size_t max_edges = 0;
+  /// Upper bound of max_edges: the triangulation costs O(n^3) time and O(n^2) memory per loop.
+  static constexpr std::size_t kLimit = 500;
+  [[nodiscard]] std::vector<std::string> validate() const;
+};
+
+struct FillStats {
+  std::size_t filled = 0;     ///< loops closed
+  std::size_t kept = 0;       ///< loops left open (larger than max_edges, or not fillable)
+  std::size_t triangles = 0;  ///< triangles added
+};
+
+/// Closes the boundary loops of `mesh` with at most `options.max_edges` edges. The patch uses
+/// only the loop's vertices, is oriented like the triangles around it and never adds an edge
+/// the mesh already has, so a manifold, consistently oriented mesh stays so (and the genus is
+/// unchanged). A mesh with non-manifold edges or vertices is left as it is (every loop kept).
+FillStats fill_holes(Mesh& mesh, const FillOptions& options);
+
+}  // namespace scanmesh::recon
