@@ -168,10 +168,26 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
     return it != directed.end() && it->first == key ? it->second : kNone;
   };
 
+  auto is_triangle = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    // The triangle on edge a -> b, if any, has c as its third corner.
+    for (const auto& [u, v] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) {
+      const std::uint32_t t = triangle_on(u, v);
+      if (t == kNone) continue;
+      const Triangle& tri = mesh.triangles[t];
+      const std::uint32_t w = u == b ? a : (u == c ? b : c);
+      if (tri[0] == w || tri[1] == w || tri[2] == w) return true;
+    }
+    return false;
+  };
   std::vector<Vec3> border;
   for (const BoundaryLoop& loop : report.loops) {
     const std::vector<std::uint32_t>& q = loop.vertices;
     if (!loop.closed || q.size() < 3 || q.size() > limit) {
+      ++stats.kept;
+      continue;
+    }
+    // The rim of a lone triangle: its patch would be the same triangle turned over.
+    if (q.size() == 3 && is_triangle(q[0], q[1], q[2])) {
       ++stats.kept;
       continue;
     }

@@ -136,7 +136,8 @@ TEST_CASE("fill_holes closes a reconstructed sphere's cap with a flat, outward p
   }
 }
 
-TEST_CASE("fill_holes leaves a non-manifold mesh alone, and checks its limit", "[recon][fill]") {
+TEST_CASE("fill_holes leaves a non-manifold mesh and a lone triangle alone, and checks its limit",
+          "[recon][fill]") {
   // Three triangles on one edge: every loop is kept.
   Mesh m;
   m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, -1, 0), Vec3(0, 0, 1)};
@@ -147,6 +148,14 @@ TEST_CASE("fill_holes leaves a non-manifold mesh alone, and checks its limit", "
   CHECK(stats.filled == 0);
   CHECK(stats.kept > 0);
   CHECK(m.triangles.size() == 3);
+  // A lone triangle's rim stays open: its patch would be the triangle turned over.
+  Mesh lone;
+  lone.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)};
+  lone.triangles = {Triangle{0, 1, 2}};
+  const auto lone_stats = fill_holes(lone, opt);
+  CHECK(lone_stats.filled == 0);
+  CHECK(lone_stats.kept == 1);
+  CHECK(lone.triangles.size() == 1);
   opt.max_edges = FillOptions::kLimit + 1;
   CHECK(opt.validate().size() == 1);
   scanmesh::recon::ReconstructOptions ro;
