@@ -35,12 +35,6 @@ nlohmann::json to_json(const recon::DistanceStats& s) {
   return {{"count", s.count}, {"mean", s.mean}, {"rms", s.rms}, {"p95", s.p95}, {"max", s.max}};
 }
 
-recon::Vec3 axis_of(const std::string& name) {
-  if (name == "x") return recon::Vec3::UnitX();
-  if (name == "y") return recon::Vec3::UnitY();
-  return recon::Vec3::UnitZ();
-}
-
 int run_deviation(const DeviationArgs& args) {
   const recon::Mesh mesh = meshio::read_mesh(args.mesh);
   if (mesh.triangles.empty()) {

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -15,6 +16,7 @@
 #include "commands.hpp"
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/preview/render.hpp"
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 
@@ -33,6 +35,8 @@ struct ReconstructArgs {
   bool no_insert = false;
   bool progress = false;
   std::size_t fill_holes = 0;
+  std::string preview;
+  std::string up = "z";
 };
 
 /// Parses --cube: "auto", "none" or a positive size in input units.
@@ -135,8 +139,20 @@ int run_reconstruct(const ReconstructArgs& args) {
   meshio::write_mesh(res.mesh, args.output, meshio::WriteOptions{args.ascii});
   if (!args.outliers_file.empty()) meshio::write_points_xyz(res.outliers, args.outliers_file);
   seconds["write"] = std::chrono::duration<double>(Clock::now() - t).count();
-  const double total = std::chrono::duration<double>(Clock::now() - t0).count();
   const recon::MeshReport rep = recon::analyze(res.mesh);
+  if (!args.preview.empty()) {
+    report("preview " + args.preview);
+    t = Clock::now();
+    preview::RenderOptions options;
+    options.up = axis_of(args.up);
+    options.title = std::filesystem::path(args.output).filename().string() + ": " +
+                    std::to_string(res.mesh.triangles.size()) + " triangles, " +
+                    std::to_string(rep.boundary_loops) + " boundary loops, genus " +
+                    std::to_string(rep.genus);
+    preview::render_mesh_png(res.mesh, args.preview, options);
+    seconds["preview"] = std::chrono::duration<double>(Clock::now() - t).count();
+  }
+  const double total = std::chrono::duration<double>(Clock::now() - t0).count();
   report("done");
 
   if (args.json) {
@@ -170,6 +186,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;
+    if (!args.preview.empty()) j["preview"] = args.preview;
     j["seconds_total"] = total;
     j["seconds"] = seconds;
     std::cout << j.dump() << "\n";
@@ -194,7 +211,8 @@ int run_reconstruct(const ReconstructArgs& args) {
               << (rep.non_manifold_edges == 0 && rep.non_manifold_vertices == 0 ? "yes" : "NO")
               << ", orientation " << (rep.orientation_consistent ? "consistent" : "INCONSISTENT")
               << "\n"
-              << "written          " << args.output << "\n"
+              << "written          " << args.output
+              << (args.preview.empty() ? std::string() : ", preview " + args.preview) << "\n"
               << "seconds          " << total << " (";
     bool first = true;
     for (const auto& [k, v] : seconds) {
@@ -233,6 +251,12 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
                   "close the boundary loops of at most N edges (minimum-weight patch of the "
                   "loop's vertices); default 0: every hole is kept")
       ->check(CLI::Range(std::size_t{0}, recon::FillOptions::kLimit));
+  cmd->add_option("--preview", args->preview,
+                  "also write a shaded picture of the mesh (.png; back faces tinted, so holes "
+                  "and flipped triangles show)");
+  cmd->add_option("--up", args->up, "world axis shown upwards in the preview (x, y or z)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"x", "y", "z"}));
   cmd->add_flag("--progress", args->progress,
                 "print each stage on stderr as it starts, with the seconds elapsed");
   cmd->callback([args, &run] { run = [args] { return run_reconstruct(*args); }; });

@@ -4,6 +4,9 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <string>
+
+#include "scanmesh/recon/mesh.hpp"
 
 namespace scanmesh::cli {
 
@@ -17,6 +20,13 @@ enum ExitCode : int {
 };
 
 using Runner = std::function<int()>;
+
+/// The world axis named by --up ("x", "y", anything else z) for the rendered pictures.
+inline recon::Vec3 axis_of(const std::string& name) {
+  if (name == "x") return recon::Vec3::UnitX();
+  if (name == "y") return recon::Vec3::UnitY();
+  return recon::Vec3::UnitZ();
+}
 
 void add_reconstruct_command(CLI::App& app, Runner& run);
 void add_inspect_command(CLI::App& app, Runner& run);

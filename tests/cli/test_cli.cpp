@@ -581,6 +581,38 @@ TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only 
   CHECK_FALSE(std::filesystem::exists(dir / "x.ply"));
 }
 
+TEST_CASE("reconstruct --preview writes a shaded picture of the mesh", "[cli]") {
+  TempDir dir;
+  const auto cloud = dir / "s.xyz";
+  auto r = run(dir, {"generate", "--part", "sphere", "-o", cloud.string()});
+  REQUIRE(r.status == 0);
+  const auto png = dir / "s.png";
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "s.stl").string(), "--json",
+                "--preview", png.string(), "--up", "y"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("preview") == png.string());
+  // A PNG of the default size (signature, then the IHDR chunk's width and height).
+  const std::string b = scanmesh::test::slurp(png);
+  REQUIRE(b.size() > 24);
+  CHECK(b.substr(0, 8) == std::string("\x89PNG\r\n\x1a\n", 8));
+  auto be32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    for (std::size_t k = 0; k < 4; ++k) v = (v << 8) | static_cast<unsigned char>(b[at + k]);
+    return v;
+  };
+  CHECK(be32(16) == 1024);
+  CHECK(be32(20) == 768);
+  // An unwritable picture is an output error naming it; no temporary file is left.
+  const auto bad = dir / "missing" / "p.png";
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "t.stl").string(), "--preview",
+                bad.string()});
+  CHECK(r.status == 4);
+  CHECK_THAT(r.err, Catch::Contains(bad.string()));
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "u.stl").string(), "--up", "w"});
+  CHECK(r.status == 2);
+}
+
 TEST_CASE("reconstruct --progress: stages on stderr in order, stdout unchanged", "[cli]") {
   TempDir dir;
   const auto cloud = dir / "s.xyz";
