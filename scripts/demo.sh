@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # Demo: installs what is missing, builds the `scanmesh` tool (Release, ./build) and reconstructs
-# the built-in `container` reference part from a synthetic scan, then inspects the mesh and
-# measures its deviation from the exact part. Everything it writes goes to ./out/.
+# the built-in `container` reference part from a synthetic scan (with a shaded preview picture),
+# then inspects the mesh and measures its deviation from the exact part. Everything it writes
+# goes to ./out/.
 #
 # Usage: scripts/demo.sh [FILE]
 #   FILE  your own input instead of the built-in part:
@@ -103,9 +104,10 @@ else
 fi
 
 mesh="out/${name}.stl"
-step "reconstruct: $points -> $mesh"
-"$scanmesh" reconstruct "$points" -o "$mesh"
-files+=("$mesh")
+preview="out/${name}_preview.png"
+step "reconstruct: $points -> $mesh (picture: $preview)"
+"$scanmesh" reconstruct "$points" -o "$mesh" --preview "$preview"
+files+=("$mesh" "$preview")
 
 step "inspect: $mesh"
 "$scanmesh" inspect "$mesh"
