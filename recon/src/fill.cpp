@@ -168,17 +168,6 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
     return it != directed.end() && it->first == key ? it->second : kNone;
   };
 
-  auto is_triangle = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-    // The triangle on edge a -> b, if any, has c as its third corner.
-    for (const auto& [u, v] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) {
-      const std::uint32_t t = triangle_on(u, v);
-      if (t == kNone) continue;
-      const Triangle& tri = mesh.triangles[t];
-      const std::uint32_t w = u == b ? a : (u == c ? b : c);
-      if (tri[0] == w || tri[1] == w || tri[2] == w) return true;
-    }
-    return false;
-  };
   std::vector<Vec3> border;
   for (const BoundaryLoop& loop : report.loops) {
     const std::vector<std::uint32_t>& q = loop.vertices;
@@ -186,8 +175,15 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
       ++stats.kept;
       continue;
     }
-    // The rim of a lone triangle: its patch would be the same triangle turned over.
-    if (q.size() == 3 && is_triangle(q[0], q[1], q[2])) {
+    // The rim of a lone triangle: its patch would be the same triangle turned over. Any
+    // triangle on these three vertices has the boundary edge q0 -> q1, so one look-up tells.
+    const auto lone_rim = [&] {
+      const std::uint32_t t = triangle_on(q[0], q[1]);
+      if (t == kNone) return false;
+      const Triangle& tri = mesh.triangles[t];
+      return tri[0] == q[2] || tri[1] == q[2] || tri[2] == q[2];
+    };
+    if (q.size() == 3 && lone_rim()) {
       ++stats.kept;
       continue;
     }

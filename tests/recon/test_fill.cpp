@@ -23,13 +23,6 @@ using scanmesh::recon::Mesh;
 using scanmesh::recon::Triangle;
 using scanmesh::recon::Vec3;
 
-double signed_volume(const Mesh& m) {
-  double v = 0;
-  for (const Triangle& t : m.triangles)
-    v += m.vertices[t[0]].dot(m.vertices[t[1]].cross(m.vertices[t[2]])) / 6.0;
-  return v;
-}
-
 }  // namespace
 
 TEST_CASE("fill_holes closes two tetrahedron faces with the other two, never repeating the "
@@ -55,7 +48,7 @@ TEST_CASE("fill_holes closes two tetrahedron faces with the other two, never rep
   CHECK(r.orientation_consistent);
   CHECK(r.genus == 0);
   CHECK(r.edges == 6);
-  CHECK(signed_volume(m) == Approx(1.0 / 6.0));
+  CHECK(r.signed_volume == Approx(1.0 / 6.0));
 }
 
 TEST_CASE("fill_holes never repeats an edge the mesh has, whatever the vertex numbering",
