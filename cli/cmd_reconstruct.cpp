@@ -35,6 +35,7 @@ struct ReconstructArgs {
   bool no_insert = false;
   bool progress = false;
   std::size_t fill_holes = 0;
+  bool fill_flat = false;
   std::string preview;
   std::string up = "z";
 };
@@ -102,6 +103,7 @@ int run_reconstruct(const ReconstructArgs& args) {
   opt.front.relaxed_min_angle_deg = std::min(opt.front.relaxed_min_angle_deg, args.min_angle_deg);
   opt.refine.enabled = !args.no_insert;
   opt.fill.max_edges = args.fill_holes;
+  opt.fill.refine = !args.fill_flat;
   if (args.inputs.empty() && args.conf.empty())
     throw ConfigError("no INPUT given (and no --conf to take the scans from)");
   if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
@@ -183,6 +185,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["sliver_flips"] = res.refine.sliver_flips;
     j["filled_holes"] = res.fill.filled;
     j["fill_triangles"] = res.fill.triangles;
+    j["fill_vertices"] = res.fill.vertices;
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;
@@ -204,7 +207,8 @@ int run_reconstruct(const ReconstructArgs& args) {
               << "inserted points  " << res.refine.inserted << " (left out by the front)\n";
     if (args.fill_holes > 0)
       std::cout << "filled holes     " << res.fill.filled << " (" << res.fill.triangles
-                << " triangles; " << res.fill.kept << " loops kept)\n";
+                << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept
+                << " loops kept)\n";
     std::cout
               << "outliers         " << res.outliers.size() << "\n"
               << "manifold         "
@@ -249,8 +253,12 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
                 "leave the points the front did not reach out (no insertion afterwards)");
   cmd->add_option("--fill-holes", args->fill_holes,
                   "close the boundary loops of at most N edges (minimum-weight patch of the "
-                  "loop's vertices); default 0: every hole is kept")
+                  "loop, refined to the density around it and faired to continue the surface); "
+                  "default 0: every hole is kept")
       ->check(CLI::Range(std::size_t{0}, recon::FillOptions::kLimit));
+  cmd->add_flag("--fill-flat", args->fill_flat,
+                "with --fill-holes: patch each hole with triangles of its rim's vertices only "
+                "(no new vertex, no fairing)");
   cmd->add_option("--preview", args->preview,
                   "also write a shaded picture of the mesh (.png; back faces tinted, so holes "
                   "and flipped triangles show)");

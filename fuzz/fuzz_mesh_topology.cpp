@@ -1,12 +1,15 @@
 // libFuzzer entry point for the mesh topology code that `scanmesh inspect` and the hole filling
 // run on meshes from outside: a mesh parsed from the bytes (first byte: OBJ, ASCII/binary STL or
-// PLY) goes through analyze() and fill_holes(). Only scanmesh::Error is an expected outcome; a
-// manifold, consistently oriented input must stay so after filling, with no more loops and the
-// same genus.
+// PLY; next bit of that byte: flat patches or refined and faired ones) goes through analyze()
+// and fill_holes(). Only scanmesh::Error is an expected outcome; a manifold, consistently
+// oriented input must stay so after filling, with each filled loop gone, the added vertices
+// counted and the existing ones unmoved.
 // SPDX-License-Identifier: MIT
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string_view>
+#include <vector>
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/meshio/meshio.hpp"
@@ -35,7 +38,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const recon::MeshReport before = recon::analyze(mesh, true);
     recon::FillOptions opt;
     opt.max_edges = 64;
+    opt.refine = (data[0] / 3) % 2 == 0;
+    const std::vector<recon::Vec3> vertices = mesh.vertices;
     const recon::FillStats stats = recon::fill_holes(mesh, opt);
+    if (mesh.vertices.size() != vertices.size() + stats.vertices) __builtin_trap();
+    if (!opt.refine && stats.vertices != 0) __builtin_trap();
+    for (std::size_t v = 0; v < vertices.size(); ++v)  // bitwise: NaN coordinates stay NaN
+      if (std::memcmp(&mesh.vertices[v], &vertices[v], sizeof(recon::Vec3)) != 0) __builtin_trap();
     const recon::MeshReport after = recon::analyze(mesh);
     const bool clean = before.non_manifold_edges == 0 && before.non_manifold_vertices == 0 &&
                        before.orientation_consistent;

@@ -570,10 +570,25 @@ TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only 
   CHECK(closed.at("orientation_consistent") == true);
   CHECK(closed.at("triangles").get<std::size_t>() ==
         open.at("triangles").get<std::size_t>() + closed.at("fill_triangles").get<std::size_t>());
+  // By default the patch is refined: new vertices inside it.
+  CHECK(closed.at("fill_vertices").get<std::size_t>() > 0);
+  CHECK(closed.at("vertices").get<std::size_t>() ==
+        open.at("vertices").get<std::size_t>() + closed.at("fill_vertices").get<std::size_t>());
   // The written file is the closed one.
   r = run(dir, {"inspect", (dir / "closed.ply").string(), "--json"});
   REQUIRE(r.status == 0);
   CHECK(json_of(r).at("boundary_loops") == 0);
+  // --fill-flat: the loop's own vertices only, n - 2 triangles for an n-edge loop.
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "flat.ply").string(), "--json",
+                "--fill-holes", "500", "--fill-flat"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json flat = json_of(r);
+  CHECK(flat.at("boundary_loops") == 0);
+  CHECK(flat.at("fill_vertices") == 0);
+  CHECK(flat.at("vertices") == open.at("vertices"));
+  CHECK(flat.at("fill_triangles").get<std::size_t>() ==
+        open.at("boundary_loop_lengths").at(0).get<std::size_t>() - 2);
   // Beyond the limit: a usage error, nothing written.
   r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "x.ply").string(), "--fill-holes",
                 "501"});

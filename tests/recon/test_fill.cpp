@@ -1,6 +1,7 @@
-// Hole filling on request: loops closed by a minimum-weight patch of their own vertices, the
-// mesh kept manifold and consistently oriented, existing edges never repeated, larger loops and
-// non-manifold meshes left alone.
+// Hole filling on request: loops closed by a minimum-weight patch of their own vertices, refined
+// to the density around the hole and faired (or flat, on request), the mesh kept manifold and
+// consistently oriented, existing edges never repeated, larger loops and non-manifold meshes
+// left alone.
 // SPDX-License-Identifier: MIT
 #include <algorithm>
 #include <array>
@@ -99,11 +100,13 @@ TEST_CASE("fill_holes closes a reconstructed sphere's cap with a flat, outward p
     CHECK(stats.kept == 1);
     CHECK(m.triangles.size() == triangles);
   }
-  SECTION("a loop within the limit is closed") {
+  SECTION("a loop within the limit is closed flat, on request") {
     FillOptions opt;
     opt.max_edges = loop_edges;
+    opt.refine = false;
     const auto stats = fill_holes(m, opt);
     CHECK(stats.filled == 1);
+    CHECK(stats.vertices == 0);
     // A triangulation of an n-gon has n - 2 triangles: no new vertex.
     CHECK(stats.triangles == loop_edges - 2);
     CHECK(m.triangles.size() == triangles + loop_edges - 2);
@@ -127,6 +130,92 @@ TEST_CASE("fill_holes closes a reconstructed sphere's cap with a flat, outward p
     const double disk = std::numbers::pi * (radius * radius - cut * cut);
     CHECK(area == Approx(disk).epsilon(0.1));
   }
+}
+
+namespace {
+
+/// Mean length of the mesh edges at the vertices of the mesh's first boundary loop.
+double mean_edge_at_loop(const Mesh& m) {
+  const auto report = analyze(m, true);
+  std::vector<char> on_loop(m.vertices.size(), 0);
+  for (std::uint32_t v : report.loops.at(0).vertices) on_loop[v] = 1;
+  double sum = 0;
+  std::size_t count = 0;
+  for (const Triangle& tri : m.triangles)
+    for (int k = 0; k < 3; ++k)
+      if (on_loop[tri[k]] || on_loop[tri[(k + 1) % 3]]) {
+        sum += (m.vertices[tri[(k + 1) % 3]] - m.vertices[tri[k]]).norm();
+        ++count;
+      }
+  return sum / static_cast<double>(count);
+}
+
+}  // namespace
+
+TEST_CASE("fill_holes refines a sphere's missing cap to the mesh's density and fairs it back "
+          "towards the sphere",
+          "[recon][fill]") {
+  const double radius = 10, cut = 7;  // the cap: 45.6 degrees from the pole, 3 units high
+  std::vector<Vec3> pts;
+  for (const Vec3& p : scanmesh::test::sphere_points(6000, radius))
+    if (p.z() < cut) pts.push_back(p);
+  Mesh m = scanmesh::recon::reconstruct(pts).mesh;
+  const auto before = analyze(m, true);
+  REQUIRE(before.boundary_loops == 1);
+  const std::size_t n = before.boundary_loop_lengths[0];
+  const std::size_t vertices = m.vertices.size(), triangles = m.triangles.size();
+  const double edge = mean_edge_at_loop(m);
+  const std::vector<Vec3> old_vertices = m.vertices;
+
+  FillOptions opt;
+  opt.max_edges = n;
+  const auto stats = fill_holes(m, opt);
+  REQUIRE(stats.filled == 1);
+  CHECK(stats.vertices > 0);
+  CHECK(m.vertices.size() == vertices + stats.vertices);
+  // Euler: a disk patch with V inner vertices over an n-loop has n - 2 + 2V triangles.
+  CHECK(stats.triangles == n - 2 + 2 * stats.vertices);
+  CHECK(m.triangles.size() == triangles + stats.triangles);
+  // The mesh's own vertices never move.
+  for (std::size_t v = 0; v < vertices; ++v) REQUIRE(m.vertices[v] == old_vertices[v]);
+  const auto r = analyze(m);
+  CHECK(r.boundary_loops == 0);
+  CHECK(r.non_manifold_edges == 0);
+  CHECK(r.non_manifold_vertices == 0);
+  CHECK(r.orientation_consistent);
+  CHECK(r.duplicate_triangles == 0);
+  CHECK(r.degenerate_triangles == 0);
+  CHECK(r.genus == 0);
+  CHECK(r.signed_volume > 0);
+  // The patch's edges are as long as the mesh's around the hole, its triangles face out of the
+  // sphere, and the faired vertices rise with the sphere: the flat patch lies 3 units (the
+  // cap's height) below the pole.
+  double worst = 0, top = 0, sum = 0, longest = 0;
+  for (std::size_t v = vertices; v < m.vertices.size(); ++v) {
+    worst = std::max(worst, std::abs(m.vertices[v].norm() - radius));
+    top = std::max(top, m.vertices[v].z());
+  }
+  for (std::size_t t = triangles; t < m.triangles.size(); ++t) {
+    const Triangle& tri = m.triangles[t];
+    const Vec3 normal = (m.vertices[tri[1]] - m.vertices[tri[0]])
+                            .cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+    const Vec3 centre = (m.vertices[tri[0]] + m.vertices[tri[1]] + m.vertices[tri[2]]) / 3.0;
+    CHECK(normal.dot(centre) > 0);
+    for (int k = 0; k < 3; ++k) {
+      const double len = (m.vertices[tri[(k + 1) % 3]] - m.vertices[tri[k]]).norm();
+      sum += len;
+      longest = std::max(longest, len);
+    }
+  }
+  const double mean = sum / static_cast<double>(3 * stats.triangles);
+  INFO("loop " << n << " edges; mesh edges at the loop " << edge << ", patch edges mean " << mean
+               << " longest " << longest << "; new vertices " << stats.vertices
+               << "; top " << top << ", farthest from the sphere " << worst);
+  CHECK(mean > 0.6 * edge);
+  CHECK(mean < 1.5 * edge);
+  CHECK(longest < 3 * edge);
+  CHECK(top > radius - 0.25 * (radius - cut));
+  CHECK(worst < 0.25 * (radius - cut));
 }
 
 TEST_CASE("fill_holes leaves a non-manifold mesh and a lone triangle alone, and checks its limit",

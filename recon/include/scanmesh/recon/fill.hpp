@@ -1,5 +1,7 @@
 // Hole filling on request: boundary loops up to a size are closed by a minimum-weight
-// triangulation of the loop (Liepa 2003: smallest largest dihedral angle, then smallest area).
+// triangulation of the loop (Liepa 2003: smallest largest dihedral angle, then smallest area),
+// then, by default, refined to the density around the hole and faired (Liepa's refinement and
+// a thin-plate, bilaplacian fairing) so that the patch continues the surface's shape.
 // Pure: no I/O, no globals.
 // SPDX-License-Identifier: MIT
 #pragma once
@@ -17,6 +19,11 @@ struct FillOptions {
   std::size_t max_edges = 0;
   /// Upper bound of max_edges: the triangulation costs O(n^3) time and O(n^2) memory per loop.
   static constexpr std::size_t kLimit = 500;
+  /// Refine the patch to the edge lengths around the hole (new vertices inside it, Delaunay edge
+  /// swaps) and fair it (bilaplacian with the loop and the ring of mesh vertices around it
+  /// held), so that it continues the curvature of the surface. False: the patch is the loop's
+  /// own vertices only (flat triangles, no new vertex).
+  bool refine = true;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
@@ -24,12 +31,13 @@ struct FillStats {
   std::size_t filled = 0;     ///< loops closed
   std::size_t kept = 0;       ///< loops left open (larger than max_edges, or not fillable)
   std::size_t triangles = 0;  ///< triangles added
+  std::size_t vertices = 0;   ///< vertices added (inside the patches, by the refinement)
 };
 
-/// Closes the boundary loops of `mesh` with at most `options.max_edges` edges. The patch uses
-/// only the loop's vertices, is oriented like the triangles around it and never adds an edge
-/// the mesh already has, so a manifold, consistently oriented mesh stays so (and the genus is
-/// unchanged). A mesh with non-manifold edges or vertices is left as it is (every loop kept).
+/// Closes the boundary loops of `mesh` with at most `options.max_edges` edges. The patch is
+/// oriented like the triangles around it and never adds an edge the mesh already has, so a
+/// manifold, consistently oriented mesh stays so (and the genus is unchanged). New vertices (of
+/// the refinement) are appended to mesh.vertices; existing vertices never move. A mesh with non-manifold edges or vertices is left as it is (every loop kept).
 FillStats fill_holes(Mesh& mesh, const FillOptions& options);
 
 }  // namespace scanmesh::recon
