@@ -30,6 +30,7 @@ inline recon::Vec3 axis_of(const std::string& name) {
 
 void add_reconstruct_command(CLI::App& app, Runner& run);
 void add_inspect_command(CLI::App& app, Runner& run);
+void add_fill_command(CLI::App& app, Runner& run);
 void add_deviation_command(CLI::App& app, Runner& run);
 void add_generate_command(CLI::App& app, Runner& run);
 void add_simulate_command(CLI::App&, Runner&);

@@ -596,6 +596,81 @@ TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only 
   CHECK_FALSE(std::filesystem::exists(dir / "x.ply"));
 }
 
+TEST_CASE("fill closes an existing mesh's holes, and refuses what it cannot fill, writing nothing",
+          "[cli]") {
+  TempDir dir;
+  // An open mesh: a sphere with its cap cut off, as reconstruct writes it.
+  const auto cloud = dir / "cap.xyz";
+  {
+    std::string text;
+    for (const auto& p : scanmesh::test::sphere_points(4000, 10.0))
+      if (p.z() < 7) text += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " +
+                             std::to_string(p.z()) + "\n";
+    spit(cloud, text);
+  }
+  const auto open_mesh = dir / "open.ply";
+  auto r = run(dir, {"reconstruct", cloud.string(), "-o", open_mesh.string(), "--json"});
+  REQUIRE(r.status == 0);
+  const json open = json_of(r);
+  REQUIRE(open.at("boundary_loops") == 1);
+
+  r = run(dir, {"fill", open_mesh.string(), "-o", (dir / "closed.stl").string(), "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json closed = json_of(r);
+  CHECK(closed.at("boundary_loops_before") == 1);
+  CHECK(closed.at("filled_holes") == 1);
+  CHECK(closed.at("boundary_loops") == 0);
+  CHECK(closed.at("genus") == 0);
+  CHECK(closed.at("orientation_consistent") == true);
+  CHECK(closed.at("signed_volume").get<double>() > 0);
+  CHECK(closed.at("fill_vertices").get<std::size_t>() > 0);
+  CHECK(closed.at("vertices").get<std::size_t>() ==
+        open.at("vertices").get<std::size_t>() + closed.at("fill_vertices").get<std::size_t>());
+  // The STL written is the closed mesh (read back with its corners welded).
+  r = run(dir, {"inspect", (dir / "closed.stl").string(), "--json"});
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("boundary_loops") == 0);
+  CHECK(json_of(r).at("triangles") == closed.at("triangles"));
+
+  // --flat: no new vertex; a loop longer than --max-edges is kept.
+  r = run(dir, {"fill", open_mesh.string(), "-o", (dir / "flat.ply").string(), "--json",
+                "--flat"});
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("fill_vertices") == 0);
+  CHECK(json_of(r).at("boundary_loops") == 0);
+  const std::size_t loop = open.at("boundary_loop_lengths").at(0).get<std::size_t>();
+  r = run(dir, {"fill", open_mesh.string(), "-o", (dir / "kept.ply").string(), "--json",
+                "--max-edges", std::to_string(loop - 1)});
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("filled_holes") == 0);
+  CHECK(json_of(r).at("kept_loops") == 1);
+  CHECK(json_of(r).at("boundary_loops") == 1);
+
+  // A non-manifold mesh (three triangles on one edge) and a point cloud: exit 3, the file
+  // named, nothing written.
+  spit(dir / "fin.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n");
+  r = run(dir, {"fill", (dir / "fin.obj").string(), "-o", (dir / "fin_out.ply").string()});
+  CHECK(r.status == 3);
+  CHECK_THAT(r.err, Catch::Contains("fin.obj") && Catch::Contains("non-manifold"));
+  CHECK_FALSE(fs::exists(dir / "fin_out.ply"));
+  spit(dir / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+  r = run(dir, {"fill", (dir / "points.obj").string(), "-o", (dir / "points_out.ply").string()});
+  CHECK(r.status == 3);
+  CHECK_THAT(r.err, Catch::Contains("points.obj") && Catch::Contains("no triangles"));
+  CHECK_FALSE(fs::exists(dir / "points_out.ply"));
+  // Usage errors: exit 2.
+  r = run(dir, {"fill", open_mesh.string(), "-o", (dir / "x.ply").string(), "--max-edges", "0"});
+  CHECK(r.status == 2);
+  r = run(dir, {"fill", open_mesh.string()});
+  CHECK(r.status == 2);
+  CHECK_FALSE(fs::exists(dir / "x.ply"));
+  // An unwritable output: exit 4, named.
+  r = run(dir, {"fill", open_mesh.string(), "-o", (dir / "no_such_dir" / "y.ply").string()});
+  CHECK(r.status == 4);
+  CHECK_THAT(r.err, Catch::Contains("y.ply"));
+}
+
 TEST_CASE("reconstruct --preview writes a shaded picture of the mesh", "[cli]") {
   TempDir dir;
   const auto cloud = dir / "s.xyz";
