@@ -186,6 +186,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["filled_holes"] = res.fill.filled;
     j["fill_triangles"] = res.fill.triangles;
     j["fill_vertices"] = res.fill.vertices;
+    j["faired_holes"] = res.fill.faired;
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;

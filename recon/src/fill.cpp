@@ -149,7 +149,8 @@ std::span<const std::pair<std::uint32_t, std::uint32_t>> triangles_at(const Corn
 class PatchRefiner {
  public:
   PatchRefiner(Mesh& mesh, std::size_t first, const std::vector<std::uint32_t>& loop,
-               const CornerPairs& mesh_corners, const std::vector<std::uint64_t>& mesh_edges)
+               const std::vector<Vec3>& border, const CornerPairs& mesh_corners,
+               const std::vector<std::uint64_t>& mesh_edges)
       : mesh_(mesh), first_(first), first_vertex_(mesh.vertices.size()), loop_(loop),
         mesh_corners_(mesh_corners), mesh_edges_(mesh_edges),
         // about n^2 / 11 vertices fill a round hole at the loop's own density: twice that at most
@@ -166,10 +167,22 @@ class PatchRefiner {
       sigma_[v] = count > 0 ? sum / static_cast<double>(count) : 0.0;
     }
     for (std::size_t t = first; t < mesh.triangles.size(); ++t) link(t);
+    for (std::size_t i = 0; i < loop.size(); ++i)
+      border_[undirected_key(loop[i], loop[(i + 1) % loop.size()])] = border[i];
   }
 
   /// Returns the number of vertices added.
-  std::size_t run() {
+  enum class Outcome { kFlat, kRefined, kFaired };
+
+  /// Refines and fairs. The minimum-weight patch kept its sharpest crease (largest angle between
+  /// neighbouring normals, the mesh's across the loop) as small as the loop allows; where the
+  /// hole spans a sharp edge of the part, refinement and fairing can fold it. Their result is
+  /// kept only if that crease grows by at most 10 degrees: else the refined positions without
+  /// fairing, else the minimum-weight patch itself (no new vertex).
+  Outcome run() {
+    const double limit = sharpest_crease() + 10 * std::numbers::pi / 180;
+    const std::vector<Triangle> plain(mesh_.triangles.begin() + static_cast<std::ptrdiff_t>(first_),
+                                      mesh_.triangles.end());
     for (int pass = 0; pass < 64; ++pass) {
       bool created = false;
       const std::size_t end = mesh_.triangles.size();
@@ -178,14 +191,23 @@ class PatchRefiner {
       if (!created) break;
       relax_all();
     }
-    fair();
-    return added();
+    if (added() == 0) return Outcome::kFlat;
+    const auto first_new = mesh_.vertices.begin() + static_cast<std::ptrdiff_t>(first_vertex_);
+    const std::vector<Vec3> refined(first_new, mesh_.vertices.end());
+    if (fair() && sharpest_crease() <= limit) return Outcome::kFaired;
+    std::copy(refined.begin(), refined.end(),
+              mesh_.vertices.begin() + static_cast<std::ptrdiff_t>(first_vertex_));
+    if (sharpest_crease() <= limit) return Outcome::kRefined;
+    mesh_.vertices.resize(first_vertex_);
+    mesh_.triangles.resize(first_);
+    mesh_.triangles.insert(mesh_.triangles.end(), plain.begin(), plain.end());
+    return Outcome::kFlat;
   }
+  [[nodiscard]] std::size_t added() const { return mesh_.vertices.size() - first_vertex_; }
 
  private:
   static constexpr std::uint32_t kFree = 0xffffffffu;
 
-  [[nodiscard]] std::size_t added() const { return mesh_.vertices.size() - first_vertex_; }
   [[nodiscard]] const Vec3& at(std::uint32_t v) const { return mesh_.vertices[v]; }
 
   void link(std::size_t t) {
@@ -248,6 +270,22 @@ class PatchRefiner {
     return std::atan2(u.cross(w).norm(), u.dot(w));
   }
 
+  [[nodiscard]] Vec3 normal_of(std::size_t t) const {
+    const Triangle& tri = mesh_.triangles[t];
+    return (at(tri[1]) - at(tri[0])).cross(at(tri[2]) - at(tri[0]));
+  }
+
+  /// The largest angle between the normals of two triangles across a patch edge (the mesh's
+  /// triangle across a loop edge).
+  [[nodiscard]] double sharpest_crease() const {
+    double worst = 0;
+    for (const auto& [key, tris] : edge_tris_) {
+      const Vec3 other = tris[1] != kFree ? normal_of(tris[1]) : border_.at(key);
+      if (other.squaredNorm() > 0) worst = std::max(worst, angle(normal_of(tris[0]), other));
+    }
+    return worst;
+  }
+
   /// Swaps the patch edge `key` when it is not locally Delaunay (the angles facing it sum to
   /// more than pi) and the swap keeps the surface's orientation. Returns true on a swap.
   bool relax(std::uint64_t key) {
@@ -305,9 +343,9 @@ class PatchRefiner {
   /// cotangent Laplacian L x_v = 1 / (2 A_v) sum_w (cot alpha + cot beta)(x_w - x_v) (A_v: a
   /// third of v's triangles' area), weights and areas taken from the patch before fairing and
   /// the mesh around it. The loop's vertices and their mesh neighbours are held.
-  void fair() {
+  bool fair() {
     const std::size_t unknowns = added();
-    if (unknowns == 0) return;
+    if (unknowns == 0) return false;
     // Triangles of every vertex whose Laplacian the system uses: the patch's and, for the loop's
     // vertices, the mesh's.
     std::vector<Triangle> tris(mesh_.triangles.begin() + static_cast<std::ptrdiff_t>(first_),
@@ -370,11 +408,12 @@ class PatchRefiner {
     system.setFromTriplets(entries.begin(), entries.end());
     Eigen::SparseLU<Eigen::SparseMatrix<double>> solver;
     solver.compute(system);
-    if (solver.info() != Eigen::Success) return;  // the refined positions stay
+    if (solver.info() != Eigen::Success) return false;  // the refined positions stay
     const Eigen::MatrixX3d x = solver.solve(rhs);
-    if (solver.info() != Eigen::Success || !x.allFinite()) return;
+    if (solver.info() != Eigen::Success || !x.allFinite()) return false;
     for (std::size_t i = 0; i < unknowns; ++i)
       mesh_.vertices[first_vertex_ + i] = x.row(static_cast<Eigen::Index>(i)).transpose();
+    return true;
   }
 
   Mesh& mesh_;
@@ -385,6 +424,7 @@ class PatchRefiner {
   std::size_t max_new_;
   std::unordered_map<std::uint32_t, double> sigma_;
   std::unordered_map<std::uint64_t, std::array<std::uint32_t, 2>> edge_tris_;
+  std::unordered_map<std::uint64_t, Vec3> border_;  // loop edge -> unit normal of the mesh's triangle
   std::vector<std::uint64_t> work_;
 };
 
@@ -471,8 +511,11 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
     }
     const std::size_t before = mesh.triangles.size();
     if (found && LoopFiller(mesh.vertices, q, border, edges).run(mesh.triangles)) {
-      if (options.refine)
-        stats.vertices += PatchRefiner(mesh, before, q, corners, edges).run();
+      if (options.refine) {
+        PatchRefiner refiner(mesh, before, q, border, corners, edges);
+        if (refiner.run() == PatchRefiner::Outcome::kFaired) ++stats.faired;
+        stats.vertices += refiner.added();
+      }
       ++stats.filled;
       stats.triangles += mesh.triangles.size() - before;
     } else {

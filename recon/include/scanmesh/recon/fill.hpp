@@ -32,6 +32,7 @@ struct FillStats {
   std::size_t kept = 0;       ///< loops left open (larger than max_edges, or not fillable)
   std::size_t triangles = 0;  ///< triangles added
   std::size_t vertices = 0;   ///< vertices added (inside the patches, by the refinement)
+  std::size_t faired = 0;     ///< patches faired (the others keep their refined, flat shape)
 };
 
 /// Closes the boundary loops of `mesh` with at most `options.max_edges` edges. The patch is
