@@ -2,6 +2,7 @@
 // tool) for CAD: every boundary loop up to a size gets a refined, faired patch (or a flat one).
 // SPDX-License-Identifier: MIT
 #include <chrono>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -11,6 +12,7 @@
 #include "commands.hpp"
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/preview/render.hpp"
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
 
@@ -26,6 +28,8 @@ struct FillArgs {
   bool flat = false;
   bool ascii = false;
   bool json = false;
+  std::string preview;
+  std::string up = "z";
 };
 
 int run_fill(const FillArgs& args) {
@@ -52,6 +56,16 @@ int run_fill(const FillArgs& args) {
   const recon::FillStats stats = recon::fill_holes(mesh, opt);
   meshio::write_mesh(mesh, args.output, meshio::WriteOptions{args.ascii});
   const recon::MeshReport after = recon::analyze(mesh);
+  if (!args.preview.empty()) {
+    preview::RenderOptions options;
+    options.up = axis_of(args.up);
+    options.highlight_from = mesh.triangles.size() - stats.triangles;
+    options.title = std::filesystem::path(args.output).filename().string() + ": " +
+                    std::to_string(stats.filled) + " holes filled (amber), " +
+                    std::to_string(after.boundary_loops) + " boundary loops, genus " +
+                    std::to_string(after.genus);
+    preview::render_mesh_png(mesh, args.preview, options);
+  }
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   if (args.json) {
     nlohmann::json j;
@@ -73,6 +87,7 @@ int run_fill(const FillArgs& args) {
     j["non_manifold_vertices"] = after.non_manifold_vertices;
     j["orientation_consistent"] = after.orientation_consistent;
     j["signed_volume"] = after.signed_volume;
+    if (!args.preview.empty()) j["preview"] = args.preview;
     j["seconds_total"] = seconds;
     std::cout << j.dump() << "\n";
   } else {
@@ -108,6 +123,11 @@ void add_fill_command(CLI::App& app, Runner& run) {
                 "fairing)");
   cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
   cmd->add_flag("--json", args->json, "print one JSON object with the figures");
+  cmd->add_option("--preview", args->preview,
+                  "also write a shaded picture of the result (.png; the patches amber)");
+  cmd->add_option("--up", args->up, "world axis shown upwards in the preview (x, y or z)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"x", "y", "z"}));
   cmd->callback([args, &run] { run = [args] { return run_fill(*args); }; });
 }
 

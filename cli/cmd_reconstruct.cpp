@@ -151,6 +151,10 @@ int run_reconstruct(const ReconstructArgs& args) {
                     std::to_string(res.mesh.triangles.size()) + " triangles, " +
                     std::to_string(rep.boundary_loops) + " boundary loops, genus " +
                     std::to_string(rep.genus);
+    if (res.fill.triangles > 0) {
+      options.highlight_from = res.mesh.triangles.size() - res.fill.triangles;
+      options.title += ", " + std::to_string(res.fill.filled) + " holes filled (amber)";
+    }
     preview::render_mesh_png(res.mesh, args.preview, options);
     seconds["preview"] = std::chrono::duration<double>(Clock::now() - t).count();
   }
@@ -262,7 +266,7 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
                 "(no new vertex, no fairing)");
   cmd->add_option("--preview", args->preview,
                   "also write a shaded picture of the mesh (.png; back faces tinted, so holes "
-                  "and flipped triangles show)");
+                  "and flipped triangles show; filled holes amber)");
   cmd->add_option("--up", args->up, "world axis shown upwards in the preview (x, y or z)")
       ->capture_default_str()
       ->check(CLI::IsMember({"x", "y", "z"}));

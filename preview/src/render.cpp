@@ -328,9 +328,11 @@ void render_mesh_png(const recon::Mesh& mesh, const std::filesystem::path& png,
                      const RenderOptions& options) {
   const cv::Vec3b front_colour{205, 205, 205};  // light grey
   const cv::Vec3b back_colour{215, 140, 95};    // BGR: bluish, so holes and flips stand out
+  const cv::Vec3b filled_colour{70, 175, 240};   // BGR: amber, surface no sensor measured
   cv::Mat img =
-      render(mesh, options, false, [&](std::size_t, const cv::Vec2f&, double light, bool front) {
-        return scaled(front ? front_colour : back_colour, light);
+      render(mesh, options, false, [&](std::size_t t, const cv::Vec2f&, double light, bool front) {
+        if (!front) return scaled(back_colour, light);
+        return scaled(t >= options.highlight_from ? filled_colour : front_colour, light);
       });
   write_png(img, png);
 }

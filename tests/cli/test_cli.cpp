@@ -614,10 +614,13 @@ TEST_CASE("fill closes an existing mesh's holes, and refuses what it cannot fill
   const json open = json_of(r);
   REQUIRE(open.at("boundary_loops") == 1);
 
-  r = run(dir, {"fill", open_mesh.string(), "-o", (dir / "closed.stl").string(), "--json"});
+  r = run(dir, {"fill", open_mesh.string(), "-o", (dir / "closed.stl").string(), "--json",
+                "--preview", (dir / "closed.png").string()});
   INFO(describe(r));
   REQUIRE(r.status == 0);
   const json closed = json_of(r);
+  CHECK(closed.at("preview") == (dir / "closed.png").string());
+  CHECK(fs::file_size(dir / "closed.png") > 10000);
   CHECK(closed.at("boundary_loops_before") == 1);
   CHECK(closed.at("filled_holes") == 1);
   CHECK(closed.at("boundary_loops") == 0);

@@ -168,6 +168,37 @@ TEST_CASE("render_mesh_png writes a PNG of the requested size", "[preview]") {
   CHECK(files_in(dir.path()) == 1);
 }
 
+TEST_CASE("render_mesh_png draws the triangles from highlight_from on amber", "[preview]") {
+  TempDir dir;
+  const Mesh m = holed_torus();
+  RenderOptions options;
+  options.up = Vec3(0, 1, 0);
+  // Amber: red well above blue (the grey has them equal, the back faces' blue is above red).
+  auto amber_pixels = [](const Picture& pic) {
+    std::size_t n = 0;
+    for (int y = 0; y < pic.height; ++y)
+      for (int x = 0; x < pic.width; ++x) n += pic.at(x, y)[2] > pic.at(x, y)[0] + 60 ? 1 : 0;
+    return n;
+  };
+  const fs::path png = dir.path() / "t.png";
+  render_mesh_png(m, png, options);
+  const std::size_t none = amber_pixels(decode(read_bytes(png)));
+  options.highlight_from = m.triangles.size() / 2;
+  render_mesh_png(m, png, options);
+  const Picture half = decode(read_bytes(png));
+  options.highlight_from = 0;
+  render_mesh_png(m, png, options);
+  const Picture all = decode(read_bytes(png));
+  INFO("amber pixels: none " << none << ", half " << amber_pixels(half) << ", all "
+                             << amber_pixels(all) << "; drawn " << coverage(all));
+  CHECK(none == 0);
+  CHECK(amber_pixels(half) > 0);
+  CHECK(amber_pixels(all) > amber_pixels(half));
+  // All front faces amber: most of what is drawn (the back faces keep their blue).
+  CHECK(static_cast<double>(amber_pixels(all)) >
+        0.5 * coverage(all) * static_cast<double>(all.width * all.height));
+}
+
 TEST_CASE("render_deviation_png writes a PNG with default and explicit limits", "[preview]") {
   TempDir dir;
   const Mesh m = holed_torus();

@@ -21,10 +21,13 @@ struct RenderOptions {
   recon::Vec3 view_dir{-1.0, -1.0, -1.0};
   recon::Vec3 up{0.0, 0.0, 1.0};
   std::string title;  ///< printed at the top left when not empty
+  /// Triangles from this index on are drawn amber instead of grey: the patches hole filling
+  /// appended (surface the scanner never measured). Default: none.
+  std::size_t highlight_from = static_cast<std::size_t>(-1);
 };
 
 /// Grey shaded picture of the mesh (both triangle sides lit; back faces tinted so holes and
-/// flipped triangles are visible). Throws OutputError when the PNG cannot be written.
+/// flipped triangles are visible; triangles from options.highlight_from on amber). Throws OutputError when the PNG cannot be written.
 void render_mesh_png(const recon::Mesh& mesh, const std::filesystem::path& png,
                      const RenderOptions& options = {});
 
