@@ -76,6 +76,19 @@ fs::path generate_sphere(const TempDir& dir) {
   return xyz;
 }
 
+/// Points of a sphere of radius 10 with the cap above z = 7 cut off (one hole of about 30
+/// edges once meshed), as cap.xyz in `dir`.
+fs::path write_capless_sphere(const TempDir& dir) {
+  const fs::path cloud = dir / "cap.xyz";
+  std::string text;
+  for (const auto& p : scanmesh::test::sphere_points(4000, 10.0))
+    if (p.z() < 7)
+      text += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " + std::to_string(p.z()) +
+              "\n";
+  spit(cloud, text);
+  return cloud;
+}
+
 /// Unit cube, outward oriented: 8 vertices, 12 triangles, volume 1.
 scanmesh::recon::Mesh unit_cube() {
   scanmesh::recon::Mesh m;
@@ -544,14 +557,7 @@ TEST_CASE("the demo's scan of the container reconstructs to a closed manifold", 
 TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only on request",
           "[cli]") {
   TempDir dir;
-  const auto cloud = dir / "cap.xyz";
-  {
-    std::string text;
-    for (const auto& p : scanmesh::test::sphere_points(4000, 10.0))
-      if (p.z() < 7) text += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " +
-                             std::to_string(p.z()) + "\n";
-    spit(cloud, text);
-  }
+  const auto cloud = write_capless_sphere(dir);
   auto r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "open.ply").string(), "--json"});
   INFO(describe(r));
   REQUIRE(r.status == 0);
@@ -600,14 +606,7 @@ TEST_CASE("fill closes an existing mesh's holes, and refuses what it cannot fill
           "[cli]") {
   TempDir dir;
   // An open mesh: a sphere with its cap cut off, as reconstruct writes it.
-  const auto cloud = dir / "cap.xyz";
-  {
-    std::string text;
-    for (const auto& p : scanmesh::test::sphere_points(4000, 10.0))
-      if (p.z() < 7) text += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " +
-                             std::to_string(p.z()) + "\n";
-    spit(cloud, text);
-  }
+  const auto cloud = write_capless_sphere(dir);
   const auto open_mesh = dir / "open.ply";
   auto r = run(dir, {"reconstruct", cloud.string(), "-o", open_mesh.string(), "--json"});
   REQUIRE(r.status == 0);

@@ -24,6 +24,14 @@ using scanmesh::recon::Mesh;
 using scanmesh::recon::Triangle;
 using scanmesh::recon::Vec3;
 
+/// The reconstruction of 6000 points of a sphere with the cap above z = cut left out: one hole.
+Mesh capless_sphere(double radius, double cut) {
+  std::vector<Vec3> pts;
+  for (const Vec3& p : scanmesh::test::sphere_points(6000, radius))
+    if (p.z() < cut) pts.push_back(p);
+  return scanmesh::recon::reconstruct(pts).mesh;
+}
+
 }  // namespace
 
 TEST_CASE("fill_holes closes two tetrahedron faces with the other two, never repeating the "
@@ -83,10 +91,7 @@ TEST_CASE("fill_holes never repeats an edge the mesh has, whatever the vertex nu
 TEST_CASE("fill_holes closes a reconstructed sphere's cap with a flat, outward patch",
           "[recon][fill]") {
   const double radius = 10, cut = 7;
-  std::vector<Vec3> pts;
-  for (const Vec3& p : scanmesh::test::sphere_points(6000, radius))
-    if (p.z() < cut) pts.push_back(p);
-  Mesh m = scanmesh::recon::reconstruct(pts).mesh;
+  Mesh m = capless_sphere(radius, cut);
   const auto before = analyze(m, true);
   REQUIRE(before.boundary_loops == 1);
   const std::size_t loop_edges = before.boundary_loop_lengths[0];
@@ -156,10 +161,7 @@ TEST_CASE("fill_holes refines a sphere's missing cap to the mesh's density and f
           "towards the sphere",
           "[recon][fill]") {
   const double radius = 10, cut = 7;  // the cap: 45.6 degrees from the pole, 3 units high
-  std::vector<Vec3> pts;
-  for (const Vec3& p : scanmesh::test::sphere_points(6000, radius))
-    if (p.z() < cut) pts.push_back(p);
-  Mesh m = scanmesh::recon::reconstruct(pts).mesh;
+  Mesh m = capless_sphere(radius, cut);
   const auto before = analyze(m, true);
   REQUIRE(before.boundary_loops == 1);
   const std::size_t n = before.boundary_loop_lengths[0];
