@@ -47,6 +47,7 @@ nlohmann::json to_json(const recon::MeshReport& r) {
   j["orientation_consistent"] = r.orientation_consistent;
   j["boundary_loops"] = r.boundary_loops;
   j["boundary_loop_lengths"] = r.boundary_loop_lengths;
+  j["boundary_loop_perimeters"] = r.boundary_loop_perimeters;
   j["components"] = r.components;
   j["euler_characteristic"] = r.euler_characteristic;
   j["genus"] = r.genus;
@@ -86,6 +87,14 @@ void print_text(const std::string& file, const recon::MeshReport& r) {
     loops += ")";
   }
   line("boundary loops", loops);
+  if (!r.boundary_loop_perimeters.empty()) {
+    constexpr std::size_t kShown = 12;
+    std::string perimeters;
+    for (std::size_t i = 0; i < r.boundary_loop_perimeters.size() && i < kShown; ++i)
+      perimeters += (i > 0 ? " " : "") + num(r.boundary_loop_perimeters[i]);
+    if (r.boundary_loop_perimeters.size() > kShown) perimeters += " ...";
+    line("loop perimeters", perimeters);
+  }
   line("components", count(r.components));
   line("euler characteristic", std::to_string(r.euler_characteristic));
   line("genus", std::to_string(r.genus));

@@ -342,9 +342,24 @@ MeshReport analyze(const Mesh& mesh, bool keep_loops) {
   }
 
   std::vector<BoundaryLoop> loops = walk_boundary_loops(boundary, nv);
-  for (const BoundaryLoop& l : loops)
-    r.boundary_loop_lengths.push_back(l.closed ? l.vertices.size() : l.vertices.size() - 1);
-  std::sort(r.boundary_loop_lengths.begin(), r.boundary_loop_lengths.end(), std::greater<>());
+  // (edges, perimeter) per loop, most edges first (a stable sort on the edges only: a perimeter
+  // may be NaN when the file's coordinates are).
+  std::vector<std::pair<std::size_t, double>> sizes;
+  for (const BoundaryLoop& l : loops) {
+    const std::size_t edges = l.closed ? l.vertices.size() : l.vertices.size() - 1;
+    double perimeter = 0;
+    for (std::size_t i = 0; i < edges; ++i)
+      perimeter += (mesh.vertices[l.vertices[(i + 1) % l.vertices.size()]] -
+                    mesh.vertices[l.vertices[i]])
+                       .norm();
+    sizes.emplace_back(edges, perimeter);
+  }
+  std::stable_sort(sizes.begin(), sizes.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  for (const auto& [edges, perimeter] : sizes) {
+    r.boundary_loop_lengths.push_back(edges);
+    r.boundary_loop_perimeters.push_back(perimeter);
+  }
   r.boundary_loops = r.boundary_loop_lengths.size();
   if (keep_loops) r.loops = std::move(loops);
 

@@ -323,7 +323,8 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
       "vertices referenced_vertices triangles degenerate_triangles "
       "duplicate_triangles edges boundary_edges non_manifold_edges "
       "non_manifold_vertices inconsistent_edges orientation_consistent "
-      "boundary_loops boundary_loop_lengths components euler_characteristic "
+      "boundary_loops boundary_loop_lengths boundary_loop_perimeters components "
+      "euler_characteristic "
       "genus angle_min_deg angle_max_deg angle_mean_deg "
       "frac_min_angle_below_10 frac_min_angle_below_20 mean_edge_length "
       "max_edge_length signed_volume");
@@ -354,6 +355,7 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
     CHECK(s["boundary_loops"] == 1);
     CHECK(s["boundary_edges"] == 4);
     CHECK(s["boundary_loop_lengths"] == json::array({4}));
+    CHECK(s["boundary_loop_perimeters"].at(0).get<double>() == Approx(4.0));
   }
   SECTION("the text report") {
     const RunResult t = run(dir, {"inspect", cube});

@@ -179,6 +179,10 @@ TEST_CASE("analyze: two holes give two loops, sorted by length", "[recon]") {
   const MeshReport r = analyze(m);
   CHECK(r.boundary_loops == 2);
   CHECK(r.boundary_loop_lengths == std::vector<std::size_t>{4, 3});
+  // The face's rim: four unit edges; the triangle's: two unit edges and a diagonal.
+  REQUIRE(r.boundary_loop_perimeters.size() == 2);
+  CHECK(r.boundary_loop_perimeters[0] == Approx(4.0));
+  CHECK(r.boundary_loop_perimeters[1] == Approx(2.0 + std::sqrt(2.0)));
   CHECK(r.genus == 0);
 }
 

@@ -31,6 +31,8 @@ struct MeshReport {
   bool orientation_consistent = true;    ///< inconsistent_edges == 0
   std::size_t boundary_loops = 0;
   std::vector<std::size_t> boundary_loop_lengths;  ///< edges per loop, descending
+  /// Length of each loop (sum of its edges' lengths, in mesh units), same order as the edges.
+  std::vector<double> boundary_loop_perimeters;
   std::size_t components = 0;            ///< edge-connected components of triangles
   long euler_characteristic = 0;         ///< V - E + F over referenced vertices
   /// Genus from chi = 2c - 2g - b (c components, b boundary loops); exact for manifold meshes.
