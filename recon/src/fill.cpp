@@ -155,20 +155,31 @@ class PatchRefiner {
         mesh_corners_(mesh_corners), mesh_edges_(mesh_edges),
         // about n^2 / 11 vertices fill a round hole at the loop's own density: twice that at most
         max_new_(loop.size() * loop.size() / 4 + 64) {
-    for (std::uint32_t v : loop) {
-      double sum = 0;  // every edge at v twice (once each way round), the loop's two once
-      std::size_t count = 0;
-      for (const auto& [u, t] : triangles_at(mesh_corners, v))
-        for (std::uint32_t w : mesh.triangles[t])
-          if (w != v) {
-            sum += (mesh.vertices[w] - mesh.vertices[v]).norm();
-            ++count;
-          }
-      sigma_[v] = count > 0 ? sum / static_cast<double>(count) : 0.0;
-    }
-    for (std::size_t t = first; t < mesh.triangles.size(); ++t) link(t);
     for (std::size_t i = 0; i < loop.size(); ++i)
       border_[undirected_key(loop[i], loop[(i + 1) % loop.size()])] = border[i];
+    // sigma: the mean length of the edges from v into the mesh (each counted twice, once from
+    // each triangle), not the rim's own edges, which are often stretched (scan borders, the
+    // long edges the front left along a gap).
+    for (std::uint32_t v : loop) {
+      double sum = 0, rim = 0;
+      std::size_t count = 0, rim_count = 0;
+      for (const auto& [u, t] : triangles_at(mesh_corners, v))
+        for (std::uint32_t w : mesh.triangles[t]) {
+          if (w == v) continue;
+          const double len = (mesh.vertices[w] - mesh.vertices[v]).norm();
+          if (border_.contains(undirected_key(v, w))) {
+            rim += len;
+            ++rim_count;
+          } else {
+            sum += len;
+            ++count;
+          }
+        }
+      // a rim vertex with a single triangle has only rim edges
+      sigma_[v] = count > 0 ? sum / static_cast<double>(count)
+                            : rim_count > 0 ? rim / static_cast<double>(rim_count) : 0.0;
+    }
+    for (std::size_t t = first; t < mesh.triangles.size(); ++t) link(t);
   }
 
   /// Returns the number of vertices added.
