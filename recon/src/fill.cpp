@@ -127,7 +127,6 @@ class LoopFiller {
   std::vector<std::uint32_t> split_;  // apex chosen for (i, j), or kNone
 };
 
-
 /// The mesh triangles at the small loops' vertices: pairs (v, triangle), sorted.
 using CornerPairs = std::vector<std::pair<std::uint32_t, std::uint32_t>>;
 
@@ -141,11 +140,11 @@ std::span<const std::pair<std::uint32_t, std::uint32_t>> triangles_at(const Corn
 
 /// Liepa's refinement and fairing of one loop's patch, the triangles mesh.triangles[first, end).
 /// Splits a patch triangle at its centroid while the centroid is farther than sigma / sqrt(2)
-/// from each corner (sigma: a vertex's mean mesh edge length; a new vertex takes the mean of its
-/// triangle's corners), keeps the patch Delaunay by edge swaps, then moves the new vertices to
-/// the solution of the uniform bilaplacian (thin plate) with the loop and the mesh ring around
-/// it held. Only the patch changes: the loop's vertices never move, no swap adds an edge the
-/// mesh or the patch has, and every swap keeps the orientation.
+/// from each corner (sigma: a loop vertex's mean edge length into the mesh; a new vertex takes
+/// the mean of its triangle's corners), keeps the patch Delaunay by edge swaps, then moves the
+/// new vertices to the solution of the cotangent bilaplacian (thin plate) with the loop and the
+/// mesh ring around it held. Only the patch changes: the loop's vertices never move, no swap
+/// adds an edge the mesh or the patch has, and every swap keeps the orientation.
 class PatchRefiner {
  public:
   PatchRefiner(Mesh& mesh, std::size_t first, const std::vector<std::uint32_t>& loop,
@@ -182,7 +181,6 @@ class PatchRefiner {
     for (std::size_t t = first; t < mesh.triangles.size(); ++t) link(t);
   }
 
-  /// Returns the number of vertices added.
   enum class Outcome { kFlat, kRefined, kFaired };
 
   /// Refines and fairs. The minimum-weight patch kept its sharpest crease (largest angle between
@@ -214,6 +212,7 @@ class PatchRefiner {
     mesh_.triangles.insert(mesh_.triangles.end(), plain.begin(), plain.end());
     return Outcome::kFlat;
   }
+  /// Vertices the refinement added (kept unless the outcome is kFlat).
   [[nodiscard]] std::size_t added() const { return mesh_.vertices.size() - first_vertex_; }
 
  private:
@@ -268,7 +267,7 @@ class PatchRefiner {
     for (std::size_t s : {t, mesh_.triangles.size() - 2, mesh_.triangles.size() - 1}) link(s);
     work_.clear();
     for (int k = 0; k < 3; ++k) work_.push_back(undirected_key(tri[k], tri[(k + 1) % 3]));
-    // Bounded: a swap pushes four edges, and a patch of m triangles has under 2m edges.
+    // At most 64 swaps here; the full relaxation after each pass finishes the job.
     for (std::size_t step = 0; !work_.empty() && step < 64; ++step) {
       const std::uint64_t key = work_.back();
       work_.pop_back();
