@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "support/data.hpp"
 
@@ -146,6 +147,10 @@ struct Figures {
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
          refine_s = kNaN, output_s = kNaN, total_s = kNaN;
   std::size_t inserted = 0, slivers = 0, sliver_flips = 0;
+  // Hole filling on request (after the measured reconstruction, on its mesh): every loop of at
+  // most FillOptions::kLimit edges.
+  double fill_s = kNaN;
+  std::size_t loops = 0, filled = 0, faired = 0, fill_vertices = 0;
   std::int64_t peak_case_bytes = 0;   ///< heap peak over the case (load + reconstruct) - baseline
   std::int64_t peak_recon_bytes = 0;  ///< heap peak inside reconstruct() - heap at its start
   std::int64_t recon_allocs = 0;      ///< allocations made inside reconstruct()
@@ -301,6 +306,16 @@ Figures run_once(const Case& c, bool& available) {
   f.cube_mm = res->cube_mm;
   f.peak_case_bytes = std::max(peak_load, peak_recon) - base;
   f.peak_recon_bytes = peak_recon - recon_base;
+
+  recon::FillOptions fill;
+  fill.max_edges = recon::FillOptions::kLimit;
+  const auto t2 = Clock::now();
+  const recon::FillStats filled = recon::fill_holes(res->mesh, fill);
+  f.fill_s = seconds_between(t2, Clock::now());
+  f.loops = filled.filled + filled.kept;
+  f.filled = filled.filled;
+  f.faired = filled.faired;
+  f.fill_vertices = filled.vertices;
   return f;
 }
 
@@ -324,6 +339,7 @@ void keep_best(Figures& best, const Figures& f, bool first) {
   best.refine_s = min_nan(best.refine_s, f.refine_s);
   best.output_s = min_nan(best.output_s, f.output_s);
   best.total_s = min_nan(best.total_s, f.total_s);
+  best.fill_s = min_nan(best.fill_s, f.fill_s);
   best.peak_case_bytes = std::max(best.peak_case_bytes, f.peak_case_bytes);
   best.peak_recon_bytes = std::max(best.peak_recon_bytes, f.peak_recon_bytes);
 }
@@ -433,7 +449,10 @@ void print_row(const Outcome& o) {
       red > 0 ? static_cast<double>(f.points_scanned) / red : kNaN,
       static_cast<double>(f.peak_case_bytes) / (1024.0 * 1024.0));
   if (!std::isnan(f.gen_s)) std::printf("; generated (not read) in %s ms", fmt_ms(f.gen_s).c_str());
-  std::printf("\n");
+  std::printf("\n%-13s   hole filling on request (loops up to %zu edges, after the above): %s ms, "
+              "%zu of %zu loops closed (%zu faired), %zu new vertices\n",
+              "", recon::FillOptions::kLimit, fmt_ms(f.fill_s).c_str(), f.filled, f.loops,
+              f.faired, f.fill_vertices);
 }
 
 std::string json_line(const Outcome& o, int repeat) {
@@ -464,6 +483,8 @@ std::string json_line(const Outcome& o, int repeat) {
   s += ",\"front_ms\":" + json_ms(f.front_s) + ",\"front_pts_per_s\":" + json_rate(red, f.front_s);
   s += ",\"insertion_ms\":" + json_ms(f.refine_s) + ",\"inserted_points\":" + std::to_string(f.inserted);
   s += ",\"output_ms\":" + json_ms(f.output_s);
+  s += ",\"fill_ms\":" + json_ms(f.fill_s) + ",\"filled_holes\":" + std::to_string(f.filled) +
+       ",\"fill_vertices\":" + std::to_string(f.fill_vertices);
   s += ",\"total_ms\":" + json_ms(f.total_s) + ",\"total_pts_per_s\":" + json_rate(in, f.total_s);
   s += ",\"peak_heap_bytes\":" + std::to_string(f.peak_case_bytes);
   s += ",\"peak_heap_bytes_per_reduced_point\":" +
