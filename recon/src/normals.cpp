@@ -334,7 +334,7 @@ void repair_by_parity(std::span<const Vec3> points, const PointGrid& grid,
 }  // namespace
 
 LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
-                            const NormalOptions& options) {
+                            const NormalOptions& options, std::span<const Vec3> towards_sensor) {
   const std::size_t n = points.size();
   const auto k = static_cast<std::size_t>(std::max(6, options.neighbours));
   LocalFrames f;
@@ -515,15 +515,23 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
       frontier.offer(c, i, j);
     }
   };
+  // With sensor directions, the part each traversal orients is remembered, to be turned to its
+  // sensors as one piece at the end.
+  const bool sensors = towards_sensor.size() == n;
+  std::vector<std::uint32_t> part(sensors ? n : 0);
+  std::uint32_t parts = 0;
   auto grow_from = [&](std::uint32_t start) {
     if (f.normal[start].z() < 0) f.normal[start] = -f.normal[start];
     frontier.set_done(start);
+    if (sensors) part[start] = parts;
     visit(start);
     while (!frontier.empty()) {
       const Frontier::Item it = frontier.pop();
       if (agreement(it.from(), it.to) < 0) f.normal[it.to] = -f.normal[it.to];
+      if (sensors) part[it.to] = parts;
       visit(it.to);
     }
+    ++parts;
   };
   // Start points: extreme in +z first (ties: lower index), so a closed surface gets outward
   // normals. The first is found by a scan; the rest (other components) are sorted once.
@@ -541,6 +549,16 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
   for (const std::uint32_t start : rest)
     if (!frontier.done(start)) grow_from(start);
   repair_by_parity(points, grid, knn, k, cost, agreement, f);
+  if (sensors) {
+    std::vector<double> facing(parts, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double len = towards_sensor[i].norm();
+      if (len > 0 && std::isfinite(len))
+        facing[part[i]] += f.normal[i].cast<double>().dot(towards_sensor[i]) / len;
+    }
+    for (std::size_t i = 0; i < n; ++i)
+      if (facing[part[i]] < 0) f.normal[i] = -f.normal[i];
+  }
   return f;
 }
 

@@ -61,7 +61,7 @@ std::vector<std::string> ReconstructOptions::validate() const {
 }
 
 ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOptions& options,
-                              const StageObserver& observer) {
+                              const StageObserver& observer, std::span<const Vec3> towards_sensor) {
   auto stage = [&](std::string_view name) {
     if (observer) observer(name);
   };
@@ -71,6 +71,10 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     throw ConfigError(msg);
   }
   check_input(points);
+  if (!towards_sensor.empty() && towards_sensor.size() != points.size())
+    throw ConfigError("sensor directions: " + std::to_string(towards_sensor.size()) +
+                      " given for " + std::to_string(points.size()) +
+                      " points (one per point, or none)");
   ReconstructResult res;
   res.input_points = points.size();
 
@@ -101,6 +105,12 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     throw GeometryError("only " + std::to_string(reduced.size()) +
                         " point(s) left after cube reduction; use a smaller --cube");
 
+  // Each kept point's direction towards its sensor, when known.
+  std::vector<Vec3> views;
+  if (!towards_sensor.empty()) {
+    views.resize(kept.size());
+    for (std::size_t i = 0; i < kept.size(); ++i) views[i] = towards_sensor[kept[i]];
+  }
   std::vector<std::uint32_t>().swap(kept);  // memory: each stage frees what it no longer needs
 
   FrontResult fr;
@@ -115,9 +125,14 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
       const auto& order = grid.order();
       for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = reduced[order[i]];
       reduced.swap(sorted);
+      if (!views.empty()) {
+        for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = views[order[i]];
+        views.swap(sorted);
+      }
     }
     grid.build(reduced, 2.5 * std::max(typical, 1e-12));
-    const LocalFrames frames = estimate_frames(reduced, grid, options.normals);
+    const LocalFrames frames = estimate_frames(reduced, grid, options.normals, views);
+    std::vector<Vec3>().swap(views);
     // Re-grid with the measured local spacing so that one ring of cells covers the front's scan
     // radius (1.5 x radius_factor spacings plus half an edge): 9 rows a query, where cells half
     // that size made the row look-ups cost more than the extra points the larger cells bring.

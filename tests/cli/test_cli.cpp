@@ -675,6 +675,39 @@ TEST_CASE("fill closes an existing mesh's holes, and refuses what it cannot fill
   CHECK_THAT(r.err, Catch::Contains("y.ply"));
 }
 
+TEST_CASE("reconstruct --conf: each scan's surface faces the sensor that took it", "[cli]") {
+  // A bowl measured in its scan's frame (the sensor looks along -z, from above), placed in the
+  // world upside down by the registration (a half turn about x): there it must face down.
+  TempDir dir;
+  std::string text;
+  for (int i = -20; i <= 20; ++i)
+    for (int j = -20; j <= 20; ++j) {
+      const double x = 0.3 * i, y = 0.3 * j;
+      text += std::to_string(x) + " " + std::to_string(y) + " " +
+              std::to_string(0.05 * (x * x + y * y)) + "\n";
+    }
+  spit(dir / "bowl.xyz", text);
+  spit(dir / "turned.conf", "bmesh bowl.xyz 0 0 0 1 0 0 0\n");
+  auto share_facing_down = [](const fs::path& file) {
+    const scanmesh::recon::Mesh m = scanmesh::meshio::read_mesh(file);
+    std::size_t down = 0;
+    for (const auto& t : m.triangles) {
+      const auto n = (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]);
+      down += n.z() < 0 ? 1 : 0;
+    }
+    return static_cast<double>(down) / static_cast<double>(m.triangles.size());
+  };
+  auto r = run(dir, {"reconstruct", "--conf", (dir / "turned.conf").string(), "-o",
+                     (dir / "world.ply").string()});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  CHECK(share_facing_down(dir / "world.ply") == 1.0);
+  // The scan alone, in its own frame, faces its sensor too: up.
+  r = run(dir, {"reconstruct", (dir / "bowl.xyz").string(), "-o", (dir / "scan.ply").string()});
+  REQUIRE(r.status == 0);
+  CHECK(share_facing_down(dir / "scan.ply") == 0.0);
+}
+
 TEST_CASE("reconstruct --preview writes a shaded picture of the mesh", "[cli]") {
   TempDir dir;
   const auto cloud = dir / "s.xyz";

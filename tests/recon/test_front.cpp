@@ -86,6 +86,43 @@ TEST_CASE("open cylinder as a 5:1 anisotropic raster scan has exactly two loops"
   CHECK(rep.max_edge_length < 2.5);
 }
 
+TEST_CASE("open scans face their sensors when the directions are given", "[recon]") {
+  // Two bowls far apart, the left one scanned from below, the right one from above.
+  std::vector<Vec3> pts, towards;
+  for (int i = -20; i <= 20; ++i)
+    for (int j = -20; j <= 20; ++j) {
+      const double x = 0.3 * i, y = 0.3 * j, z = 0.05 * (x * x + y * y);
+      pts.emplace_back(x - 20, y, z);
+      towards.emplace_back(0, 0, -1);
+      pts.emplace_back(x + 20, y, z);
+      towards.emplace_back(0, 0, 1);
+    }
+  auto facing_down = [](const ReconstructResult& r, bool left) {
+    std::size_t down = 0, total = 0;
+    for (const auto& t : r.mesh.triangles) {
+      const Vec3& a = r.mesh.vertices[t[0]];
+      if ((a.x() < 0) != left) continue;
+      const Vec3 n = (r.mesh.vertices[t[1]] - a).cross(r.mesh.vertices[t[2]] - a);
+      down += n.z() < 0 ? 1 : 0;
+      ++total;
+    }
+    return static_cast<double>(down) / static_cast<double>(total);
+  };
+  const ReconstructResult faced = reconstruct(pts, {}, {}, towards);
+  const MeshReport r = analyze(faced.mesh);
+  CHECK(r.components == 2);
+  CHECK(r.boundary_loops == 2);
+  CHECK(r.orientation_consistent);
+  CHECK(facing_down(faced, true) == 1.0);   // towards the sensor below
+  CHECK(facing_down(faced, false) == 0.0);  // towards the sensor above
+  // Without the directions both face +z, the convention for open parts.
+  const ReconstructResult plain = reconstruct(pts);
+  CHECK(facing_down(plain, true) == 0.0);
+  CHECK(facing_down(plain, false) == 0.0);
+  // One direction per point, or none.
+  CHECK_THROWS_AS(reconstruct(pts, {}, {}, std::span(towards).first(5)), scanmesh::ConfigError);
+}
+
 TEST_CASE("cube with sharp edges closes", "[recon]") {
   const auto pts = test::cube_points(10.0, 0.25);
   const auto r = reconstruct(pts);

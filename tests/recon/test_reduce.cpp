@@ -420,6 +420,38 @@ TEST_CASE("estimate_frames: a view point orients every normal towards it", "[rec
     REQUIRE(f.normal[i].cast<double>().dot(*opt.view_point - pts[i]) >= 0);
 }
 
+TEST_CASE("estimate_frames: each part the propagation orients faces its own sensors",
+          "[recon]") {
+  // Two bowls (paraboloid caps) far apart, each scanned from its own side: the left one from
+  // below, the right one from above. Without sensor directions both face +z at their highest
+  // point (inwards for the left bowl's inside, as the convention goes).
+  std::vector<Vec3> pts, towards;
+  for (int i = -12; i <= 12; ++i)
+    for (int j = -12; j <= 12; ++j) {
+      const double x = 0.5 * i, y = 0.5 * j, z = 0.05 * (x * x + y * y);
+      pts.emplace_back(x - 20, y, z);
+      towards.emplace_back(0.1, 0, -1);  // sensor below (not exactly along the axis)
+      pts.emplace_back(x + 20, y, z);
+      towards.emplace_back(0, 0.2, 1);  // sensor above
+    }
+  recon::PointGrid grid;
+  grid.build(pts, 1.25);
+  const auto plain = recon::estimate_frames(pts, grid);
+  const auto faced = recon::estimate_frames(pts, grid, {}, towards);
+  std::size_t plain_up = 0, facing = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    plain_up += plain.normal[i].z() > 0 ? 1 : 0;
+    facing += faced.normal[i].cast<double>().dot(towards[i]) > 0 ? 1 : 0;
+    // The same axes: only signs differ.
+    REQUIRE(std::abs(std::abs(plain.normal[i].dot(faced.normal[i])) - 1.0f) < 1e-5f);
+  }
+  CHECK(plain_up == pts.size());
+  CHECK(facing == pts.size());
+  // A wrong count of directions is ignored (the plain propagation).
+  const auto ignored = recon::estimate_frames(pts, grid, {}, std::span(towards).first(3));
+  for (std::size_t i = 0; i < pts.size(); ++i) REQUIRE(ignored.normal[i] == plain.normal[i]);
+}
+
 // --- grid
 // ------------------------------------------------------------------------------------------
 

@@ -28,8 +28,15 @@ struct NormalOptions {
 /// `grid` must index `points` with a cell of at least ~2x the typical spacing. The neighbours
 /// of a point are the `neighbours` nearest among the points of the 27 grid cells around it
 /// (ties broken by the lower index); 125 and then 343 cells when 27 hold too few.
+/// `towards_sensor`, when it has one entry per point, is a vector from each point towards the
+/// sensor that measured it (a direction, or the sensor position minus the point). The
+/// propagation still makes the normals consistent (it is more reliable than a per-point sign at
+/// grazing angles); then each part it oriented as one piece is turned to face its sensors: by
+/// the sum of n . unit(towards_sensor) over its points. Without it, a part that is not closed
+/// faces +z where it is highest.
 LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
-                            const NormalOptions& options = {});
+                            const NormalOptions& options = {},
+                            std::span<const Vec3> towards_sensor = {});
 
 namespace detail {
 

@@ -57,7 +57,11 @@ using StageObserver = std::function<void(std::string_view stage)>;
 
 /// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,
 /// fewer than 3 distinct points, non-finite coordinates, all points collinear.
+/// `towards_sensor` (empty, or one per point): a vector from each point towards the sensor that
+/// measured it; each part of the surface then faces its sensors (estimate_frames). Closed parts
+/// face outward either way.
 ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOptions& options = {},
-                              const StageObserver& observer = {});
+                              const StageObserver& observer = {},
+                              std::span<const Vec3> towards_sensor = {});
 
 }  // namespace scanmesh::recon
