@@ -29,6 +29,7 @@ struct ReconstructArgs {
   std::string cube = "auto";
   double min_angle_deg = 20;
   std::string conf;
+  std::vector<double> sensor;  ///< --sensor X,Y,Z: one sensor position for every input point
   bool json = false;
   bool ascii = false;
   std::string outliers_file;
@@ -117,8 +118,15 @@ int run_reconstruct(const ReconstructArgs& args) {
     throw ConfigError("no INPUT given (and no --conf to take the scans from)");
   if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
 
+  if (!args.sensor.empty() && !args.conf.empty())
+    throw ConfigError("--sensor and --conf both say where the sensor was: give one");
   std::vector<recon::Vec3> towards_sensor;
   const std::vector<recon::Vec3> points = load_inputs(args, towards_sensor);
+  if (args.sensor.size() == 3) {
+    const recon::Vec3 at(args.sensor[0], args.sensor[1], args.sensor[2]);
+    towards_sensor.resize(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) towards_sensor[i] = at - points[i];
+  }
   if (points.empty()) {
     std::string names;
     for (const auto& in : args.inputs) names += (names.empty() ? "" : ", ") + in;
@@ -261,6 +269,11 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_option("--conf", args->conf,
                   "scanalyze registration file (bmesh FILE tx ty tz qx qy qz qw); without INPUT "
                   "every listed scan is used");
+  cmd->add_option("--sensor", args->sensor,
+                  "X,Y,Z: where the sensor was (a single-view scan); an open surface then faces "
+                  "it (with --conf, each scan's own sensor is used instead)")
+      ->delimiter(',')
+      ->expected(3);
   cmd->add_flag("--json", args->json, "print one JSON object with the figures");
   cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
   cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");

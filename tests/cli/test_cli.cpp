@@ -675,7 +675,7 @@ TEST_CASE("fill closes an existing mesh's holes, and refuses what it cannot fill
   CHECK_THAT(r.err, Catch::Contains("y.ply"));
 }
 
-TEST_CASE("reconstruct --conf: each scan's surface faces the sensor that took it", "[cli]") {
+TEST_CASE("reconstruct --conf / --sensor: an open scan faces the sensor that took it", "[cli]") {
   // A bowl measured in its scan's frame (the sensor looks along -z, from above), placed in the
   // world upside down by the registration (a half turn about x): there it must face down.
   TempDir dir;
@@ -702,10 +702,25 @@ TEST_CASE("reconstruct --conf: each scan's surface faces the sensor that took it
   INFO(describe(r));
   REQUIRE(r.status == 0);
   CHECK(share_facing_down(dir / "world.ply") == 1.0);
-  // The scan alone, in its own frame, faces its sensor too: up.
+  // The scan alone, in its own frame, faces up (the convention for open parts)...
   r = run(dir, {"reconstruct", (dir / "bowl.xyz").string(), "-o", (dir / "scan.ply").string()});
   REQUIRE(r.status == 0);
   CHECK(share_facing_down(dir / "scan.ply") == 0.0);
+  // ... and down when --sensor says the sensor was below it.
+  r = run(dir, {"reconstruct", (dir / "bowl.xyz").string(), "-o", (dir / "below.ply").string(),
+                "--sensor", "0,0,-10"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  CHECK(share_facing_down(dir / "below.ply") == 1.0);
+  // Two answers to where the sensor was, or not three coordinates: usage errors.
+  r = run(dir, {"reconstruct", "--conf", (dir / "turned.conf").string(), "-o",
+                (dir / "x.ply").string(), "--sensor", "0,0,1"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("--sensor"));
+  r = run(dir, {"reconstruct", (dir / "bowl.xyz").string(), "-o", (dir / "x.ply").string(),
+                "--sensor", "0,0"});
+  CHECK(r.status == 2);
+  CHECK_FALSE(fs::exists(dir / "x.ply"));
 }
 
 TEST_CASE("reconstruct --preview writes a shaded picture of the mesh", "[cli]") {
