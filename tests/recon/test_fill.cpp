@@ -24,6 +24,17 @@ using scanmesh::recon::Mesh;
 using scanmesh::recon::Triangle;
 using scanmesh::recon::Vec3;
 
+/// After filling its one hole: a closed, manifold, outward sphere (genus 0).
+void check_closed_outward_sphere(const Mesh& m) {
+  const auto r = analyze(m);
+  CHECK(r.boundary_loops == 0);
+  CHECK(r.non_manifold_edges == 0);
+  CHECK(r.non_manifold_vertices == 0);
+  CHECK(r.orientation_consistent);
+  CHECK(r.genus == 0);
+  CHECK(r.signed_volume > 0);
+}
+
 /// The reconstruction of 6000 points of a sphere with the cap above z = cut left out: one hole.
 Mesh capless_sphere(double radius, double cut) {
   std::vector<Vec3> pts;
@@ -115,13 +126,7 @@ TEST_CASE("fill_holes closes a reconstructed sphere's cap with a flat, outward p
     // A triangulation of an n-gon has n - 2 triangles: no new vertex.
     CHECK(stats.triangles == loop_edges - 2);
     CHECK(m.triangles.size() == triangles + loop_edges - 2);
-    const auto r = analyze(m);
-    CHECK(r.boundary_loops == 0);
-    CHECK(r.non_manifold_edges == 0);
-    CHECK(r.non_manifold_vertices == 0);
-    CHECK(r.orientation_consistent);
-    CHECK(r.genus == 0);
-    CHECK(r.signed_volume > 0);
+    check_closed_outward_sphere(m);
     // The patch lies near the cut plane, faces up (out of the sphere) and covers the cap's disk.
     double area = 0;
     for (std::size_t t = triangles; t < m.triangles.size(); ++t) {
@@ -180,15 +185,10 @@ TEST_CASE("fill_holes refines a sphere's missing cap to the mesh's density and f
   CHECK(m.triangles.size() == triangles + stats.triangles);
   // The mesh's own vertices never move.
   for (std::size_t v = 0; v < vertices; ++v) REQUIRE(m.vertices[v] == old_vertices[v]);
+  check_closed_outward_sphere(m);
   const auto r = analyze(m);
-  CHECK(r.boundary_loops == 0);
-  CHECK(r.non_manifold_edges == 0);
-  CHECK(r.non_manifold_vertices == 0);
-  CHECK(r.orientation_consistent);
   CHECK(r.duplicate_triangles == 0);
   CHECK(r.degenerate_triangles == 0);
-  CHECK(r.genus == 0);
-  CHECK(r.signed_volume > 0);
   // The patch's edges are as long as the mesh's around the hole, its triangles face out of the
   // sphere, and the faired vertices rise with the sphere: the flat patch lies 3 units (the
   // cap's height) below the pole.

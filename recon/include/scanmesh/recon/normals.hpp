@@ -33,7 +33,8 @@ struct NormalOptions {
 /// propagation still makes the normals consistent (it is more reliable than a per-point sign at
 /// grazing angles); then each part it oriented as one piece is turned to face its sensors: by
 /// the sum of n . unit(towards_sensor) over its points. Without it, a part that is not closed
-/// faces +z where it is highest.
+/// faces +z where it is highest. options.view_point, when set, orients every normal towards it
+/// instead (no propagation, `towards_sensor` unused).
 LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
                             const NormalOptions& options = {},
                             std::span<const Vec3> towards_sensor = {});
