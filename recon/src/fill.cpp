@@ -7,7 +7,7 @@
 #include "scanmesh/recon/fill.hpp"
 
 #include <Eigen/SparseCore>
-#include <Eigen/SparseLU>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -27,12 +27,15 @@ std::uint64_t undirected_key(std::uint32_t u, std::uint32_t v) {
   return u < v ? (std::uint64_t{u} << 32) | v : (std::uint64_t{v} << 32) | u;
 }
 
-/// Weight of a partial triangulation, compared lexicographically.
+/// Weight of a partial triangulation, compared lexicographically: its largest dihedral angle
+/// between adjacent triangles, then its area. The angle is kept as its cosine (acos is
+/// decreasing, so the largest angle is the smallest cosine): the search compares angles
+/// O(n^3) times and never needs one in radians.
 struct Weight {
-  double angle = 0;  // largest dihedral angle between adjacent triangles, radians
+  double worst_cos = 1;  // cosine of the largest dihedral angle; -infinity: no triangulation
   double area = 0;
-  bool operator<(const Weight& o) const {
-    return angle != o.angle ? angle < o.angle : area < o.area;
+  [[nodiscard]] bool better_than(const Weight& o) const {
+    return worst_cos != o.worst_cos ? worst_cos > o.worst_cos : area < o.area;
   }
 };
 
@@ -47,37 +50,49 @@ class LoopFiller {
   LoopFiller(const std::vector<Vec3>& vertices, const std::vector<std::uint32_t>& q,
              const std::vector<Vec3>& border, const std::vector<std::uint64_t>& edges)
       : p_(vertices), q_(q), border_(border), edges_(edges), n_(q.size()),
-        weight_(n_ * n_), split_(n_ * n_, kNone) {}
+        weight_(n_ * n_), split_(n_ * n_, kNone), unit_(n_ * n_, Vec3::Zero()) {}
 
   bool run(std::vector<Triangle>& out) {
     const std::size_t n = n_;
+    for (std::size_t i = 0; i + 1 < n; ++i) unit_[i * n + i + 1] = border_[i];
     for (std::size_t len = 2; len < n; ++len) {
       for (std::size_t i = 0; i + len < n; ++i) {
         const std::size_t j = i + len;
         Weight& best = weight_[i * n + j];
-        best = {kInfinity, kInfinity};
+        best = {-kInfinity, kInfinity};
         const bool outer = i == 0 && j == n - 1;  // its edge (j, i) is the loop's last edge
         if (!outer && chord_exists(i, j)) continue;
         for (std::size_t m = i + 1; m < j; ++m) {
           const Weight& left = weight_[i * n + m];
           const Weight& right = weight_[m * n + j];
-          if (left.angle == kInfinity || right.angle == kInfinity) continue;
+          // The angle only grows with this triangle's creases: a side already sharper than the
+          // best so far cannot win (exact pruning; -infinity: no triangulation).
+          if (std::min(left.worst_cos, right.worst_cos) < best.worst_cos ||
+              left.worst_cos == -kInfinity || right.worst_cos == -kInfinity)
+            continue;
           const Vec3 normal = patch_normal(i, m, j);
           const double twice_area = normal.norm();
-          double angle = std::max(left.angle, right.angle);
+          double worst = std::min(left.worst_cos, right.worst_cos);
           if (twice_area == 0) {
-            angle = std::numbers::pi;
+            worst = -1;
           } else {
             const Vec3 unit = normal / twice_area;
-            angle = std::max(angle, dihedral(unit, neighbour_normal(i, m)));
-            angle = std::max(angle, dihedral(unit, neighbour_normal(m, j)));
-            if (outer) angle = std::max(angle, dihedral(unit, border_[n - 1]));
+            worst = std::min(worst, crease_cos(unit, unit_[i * n + m]));
+            worst = std::min(worst, crease_cos(unit, unit_[m * n + j]));
+            if (outer) worst = std::min(worst, crease_cos(unit, border_[n - 1]));
           }
-          const Weight w{angle, left.area + right.area + 0.5 * twice_area};
-          if (w < best) {
+          const Weight w{worst, left.area + right.area + 0.5 * twice_area};
+          if (w.better_than(best)) {
             best = w;
             split_[i * n + j] = static_cast<std::uint32_t>(m);
           }
+        }
+        // The chosen triangle's unit normal, read by every larger sub-polygon that has (i, j)
+        // as a side (zero when degenerate: a crease of 180 degrees).
+        if (split_[i * n + j] != kNone) {
+          const Vec3 normal = patch_normal(i, split_[i * n + j], j);
+          const double len2 = normal.norm();
+          if (len2 > 0) unit_[i * n + j] = normal / len2;
         }
       }
     }
@@ -102,17 +117,11 @@ class LoopFiller {
     const Vec3& a = p_[q_[j]];
     return (p_[q_[m]] - a).cross(p_[q_[i]] - a);
   }
-  /// Unit normal of the triangle across edge (i, k), k > i: the mesh's on a loop edge, else the
-  /// one the sub-polygon (i, k) chose.
-  [[nodiscard]] Vec3 neighbour_normal(std::size_t i, std::size_t k) const {
-    if (k == i + 1) return border_[i];
-    const Vec3 normal = patch_normal(i, split_[i * n_ + k], k);
-    const double len = normal.norm();
-    return len > 0 ? Vec3(normal / len) : Vec3::Zero();
-  }
-  static double dihedral(const Vec3& a, const Vec3& b) {
-    if (b.squaredNorm() == 0) return std::numbers::pi;
-    return std::acos(std::clamp(a.dot(b), -1.0, 1.0));
+  /// Cosine of the dihedral angle between two unit normals; -1 (180 degrees) when b is zero (a
+  /// degenerate neighbour).
+  static double crease_cos(const Vec3& a, const Vec3& b) {
+    if (b.squaredNorm() == 0) return -1;
+    return std::clamp(a.dot(b), -1.0, 1.0);
   }
   [[nodiscard]] bool chord_exists(std::size_t i, std::size_t j) const {
     return std::binary_search(edges_.begin(), edges_.end(), undirected_key(q_[i], q_[j]));
@@ -125,6 +134,7 @@ class LoopFiller {
   std::size_t n_;
   std::vector<Weight> weight_;        // [i * n + j], j > i
   std::vector<std::uint32_t> split_;  // apex chosen for (i, j), or kNone
+  std::vector<Vec3> unit_;            // unit normal of the triangle on side (i, j), j > i
 };
 
 /// The mesh triangles at the small loops' vertices: pairs (v, triangle), sorted.
@@ -388,10 +398,14 @@ class PatchRefiner {
     std::vector<Eigen::Triplet<double>> entries;
     Eigen::MatrixX3d rhs = Eigen::MatrixX3d::Zero(static_cast<Eigen::Index>(unknowns), 3);
     std::vector<std::pair<std::uint32_t, double>> row, inner;
-    // One row of L: (v, -sum / (2 A)) and (w, weight / (2 A)) for every neighbour w.
-    auto laplacian_row = [&](std::uint32_t v, std::vector<std::pair<std::uint32_t, double>>& out) {
+    // One row of L = D^-1 W: (v, -sum / (2 A)) and (w, weight / (2 A)) for every neighbour w.
+    // The equations L L x = 0 of the new vertices are taken times their own 2 A, i.e.
+    // W D^-1 W x = 0: symmetric positive definite (W is symmetric), so a Cholesky factorisation
+    // solves them, with the same solution.
+    auto laplacian_row = [&](std::uint32_t v, std::vector<std::pair<std::uint32_t, double>>& out,
+                             bool scaled) {
       out.clear();
-      const double scale = 1.0 / (2.0 * std::max(area[v], 1e-300));
+      const double scale = scaled ? 1.0 / (2.0 * std::max(area[v], 1e-300)) : 1.0;
       double sum = 0;
       for (const auto& [w, wk] : ring[v]) {
         out.emplace_back(w, wk * scale);
@@ -401,9 +415,9 @@ class PatchRefiner {
     };
     for (std::size_t i = 0; i < unknowns; ++i) {
       const auto vi = static_cast<std::uint32_t>(first_vertex_ + i);
-      laplacian_row(vi, row);
+      laplacian_row(vi, row, false);
       for (const auto& [r, lr] : row) {
-        laplacian_row(r, inner);
+        laplacian_row(r, inner, true);
         for (const auto& [w, lw] : inner) {
           const double coef = lr * lw;
           if (w >= first_vertex_)
@@ -416,7 +430,7 @@ class PatchRefiner {
     Eigen::SparseMatrix<double> system(static_cast<Eigen::Index>(unknowns),
                                        static_cast<Eigen::Index>(unknowns));
     system.setFromTriplets(entries.begin(), entries.end());
-    Eigen::SparseLU<Eigen::SparseMatrix<double>> solver;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
     solver.compute(system);
     if (solver.info() != Eigen::Success) return false;  // the refined positions stay
     const Eigen::MatrixX3d x = solver.solve(rhs);

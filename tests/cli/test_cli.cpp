@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/mesh.hpp"
 #include "support/process.hpp"
 #include "support/shapes.hpp"
@@ -599,7 +600,7 @@ TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only 
         open.at("boundary_loop_lengths").at(0).get<std::size_t>() - 2);
   // Beyond the limit: a usage error, nothing written.
   r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "x.ply").string(), "--fill-holes",
-                "501"});
+                std::to_string(scanmesh::recon::FillOptions::kLimit + 1)});
   CHECK(r.status == 2);
   CHECK_FALSE(std::filesystem::exists(dir / "x.ply"));
 }

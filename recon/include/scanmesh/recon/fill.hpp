@@ -18,7 +18,7 @@ struct FillOptions {
   /// Loops with at most this many edges are closed; 0 closes none (every hole is kept).
   std::size_t max_edges = 0;
   /// Upper bound of max_edges: the triangulation costs O(n^3) time and O(n^2) memory per loop.
-  static constexpr std::size_t kLimit = 500;
+  static constexpr std::size_t kLimit = 1000;
   /// Refine the patch to the edge lengths around the hole (new vertices inside it, Delaunay edge
   /// swaps) and fair it (bilaplacian with the loop and the ring of mesh vertices around it
   /// held), so that it continues the curvature of the surface. False: the patch is the loop's
