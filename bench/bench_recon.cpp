@@ -25,6 +25,7 @@
 
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/fill.hpp"
+#include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "support/data.hpp"
 
@@ -150,6 +151,9 @@ struct Figures {
   // Hole filling on request (after the measured reconstruction, on its mesh): every loop of at
   // most FillOptions::kLimit edges.
   double fill_s = kNaN;
+  // Self-intersection check of the output (before filling): pairs found and its time.
+  std::size_t crossing_pairs = 0;
+  double crossing_s = kNaN;
   std::size_t loops = 0, filled = 0, faired = 0, fill_vertices = 0;
   std::int64_t peak_case_bytes = 0;   ///< heap peak over the case (load + reconstruct) - baseline
   std::int64_t peak_recon_bytes = 0;  ///< heap peak inside reconstruct() - heap at its start
@@ -307,6 +311,11 @@ Figures run_once(const Case& c, bool& available) {
   f.peak_case_bytes = std::max(peak_load, peak_recon) - base;
   f.peak_recon_bytes = peak_recon - recon_base;
 
+  // Quality and its cost: triangle pairs of the output that cross (CAD rejects them).
+  const auto t_check = Clock::now();
+  f.crossing_pairs = recon::find_self_intersections(res->mesh).pairs;
+  f.crossing_s = seconds_between(t_check, Clock::now());
+
   recon::FillOptions fill;
   fill.max_edges = recon::FillOptions::kLimit;
   const auto t2 = Clock::now();
@@ -340,6 +349,7 @@ void keep_best(Figures& best, const Figures& f, bool first) {
   best.output_s = min_nan(best.output_s, f.output_s);
   best.total_s = min_nan(best.total_s, f.total_s);
   best.fill_s = min_nan(best.fill_s, f.fill_s);
+  best.crossing_s = min_nan(best.crossing_s, f.crossing_s);
   best.peak_case_bytes = std::max(best.peak_case_bytes, f.peak_case_bytes);
   best.peak_recon_bytes = std::max(best.peak_recon_bytes, f.peak_recon_bytes);
 }
@@ -453,6 +463,8 @@ void print_row(const Outcome& o) {
               "%zu of %zu loops closed (%zu faired), %zu new vertices\n",
               "", recon::FillOptions::kLimit, fmt_ms(f.fill_s).c_str(), f.filled, f.loops,
               f.faired, f.fill_vertices);
+  std::printf("%-13s   self-intersection check of the output: %zu crossing triangle pairs, %s ms\n",
+              "", f.crossing_pairs, fmt_ms(f.crossing_s).c_str());
 }
 
 std::string json_line(const Outcome& o, int repeat) {
@@ -485,6 +497,8 @@ std::string json_line(const Outcome& o, int repeat) {
   s += ",\"output_ms\":" + json_ms(f.output_s);
   s += ",\"fill_ms\":" + json_ms(f.fill_s) + ",\"filled_holes\":" + std::to_string(f.filled) +
        ",\"fill_vertices\":" + std::to_string(f.fill_vertices);
+  s += ",\"crossing_pairs\":" + std::to_string(f.crossing_pairs) +
+       ",\"crossing_check_ms\":" + json_ms(f.crossing_s);
   s += ",\"total_ms\":" + json_ms(f.total_s) + ",\"total_pts_per_s\":" + json_rate(in, f.total_s);
   s += ",\"peak_heap_bytes\":" + std::to_string(f.peak_case_bytes);
   s += ",\"peak_heap_bytes_per_reduced_point\":" +

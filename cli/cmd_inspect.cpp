@@ -10,6 +10,7 @@
 #include "commands.hpp"
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/intersections.hpp"
 
 namespace scanmesh::cli {
 namespace {
@@ -32,7 +33,7 @@ std::string percent(double fraction) {
   return buf;
 }
 
-nlohmann::json to_json(const recon::MeshReport& r) {
+nlohmann::json to_json(const recon::MeshReport& r, const recon::SelfIntersections& x) {
   nlohmann::json j;
   j["vertices"] = r.vertices;
   j["referenced_vertices"] = r.referenced_vertices;
@@ -59,10 +60,16 @@ nlohmann::json to_json(const recon::MeshReport& r) {
   j["mean_edge_length"] = r.mean_edge_length;
   j["max_edge_length"] = r.max_edge_length;
   j["signed_volume"] = r.signed_volume;
+  j["self_intersections"] = x.pairs;
+  j["self_intersecting_triangles"] = x.triangles;
+  nlohmann::json pairs = nlohmann::json::array();
+  for (const auto& [a, b] : x.examples) pairs.push_back({a, b});
+  j["self_intersection_examples"] = pairs;
   return j;
 }
 
-void print_text(const std::string& file, const recon::MeshReport& r) {
+void print_text(const std::string& file, const recon::MeshReport& r,
+                const recon::SelfIntersections& x) {
   auto line = [](const char* label, const std::string& value) {
     std::cout << std::left << std::setw(25) << label << value << "\n";
   };
@@ -104,15 +111,23 @@ void print_text(const std::string& file, const recon::MeshReport& r) {
                                       percent(r.frac_min_angle_below_20) + " of triangles");
   line("edge length", "mean " + num(r.mean_edge_length) + ", max " + num(r.max_edge_length));
   line("signed volume", num(r.signed_volume));
+  std::string crossing = count(x.pairs) + " triangle pairs";
+  if (x.pairs > 0) {
+    crossing += " (" + count(x.triangles) + " triangles; first:";
+    for (const auto& [a, b] : x.examples) crossing += " " + count(a) + "/" + count(b);
+    crossing += x.examples.size() < x.pairs ? " ...)" : ")";
+  }
+  line("self-intersections", crossing);
 }
 
 int run_inspect(const InspectArgs& args) {
   const recon::Mesh mesh = meshio::read_mesh(args.mesh);
   const recon::MeshReport report = recon::analyze(mesh);
+  const recon::SelfIntersections crossing = recon::find_self_intersections(mesh, 8);
   if (args.json) {
-    std::cout << to_json(report).dump() << "\n";
+    std::cout << to_json(report, crossing).dump() << "\n";
   } else {
-    print_text(args.mesh, report);
+    print_text(args.mesh, report, crossing);
   }
   return kExitOk;
 }
@@ -122,7 +137,7 @@ int run_inspect(const InspectArgs& args) {
 void add_inspect_command(CLI::App& app, Runner& run) {
   auto args = std::make_shared<InspectArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "inspect", "Print a mesh's topology (manifoldness, orientation, holes, genus) and quality");
+      "inspect", "Print a mesh's topology (manifoldness, orientation, holes, genus, self-intersections) and quality");
   cmd->add_option("MESH", args->mesh, "mesh file: .ply .stl .obj")->required();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the text summary");
   cmd->callback([args, &run] { run = [args] { return run_inspect(*args); }; });

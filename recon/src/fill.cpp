@@ -19,6 +19,7 @@
 #include <utility>
 
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/intersections.hpp"
 
 namespace scanmesh::recon {
 namespace {
@@ -198,7 +199,7 @@ class PatchRefiner {
   /// hole spans a sharp edge of the part, refinement and fairing can fold it. Their result is
   /// kept only if that crease grows by at most 10 degrees: else the refined positions without
   /// fairing, else the minimum-weight patch itself (no new vertex).
-  Outcome run() {
+  Outcome run(bool may_fair) {
     const double limit = sharpest_crease() + 10 * std::numbers::pi / 180;
     const std::vector<Triangle> plain(mesh_.triangles.begin() + static_cast<std::ptrdiff_t>(first_),
                                       mesh_.triangles.end());
@@ -213,7 +214,7 @@ class PatchRefiner {
     if (added() == 0) return Outcome::kFlat;
     const auto first_new = mesh_.vertices.begin() + static_cast<std::ptrdiff_t>(first_vertex_);
     const std::vector<Vec3> refined(first_new, mesh_.vertices.end());
-    if (fair() && sharpest_crease() <= limit) return Outcome::kFaired;
+    if (may_fair && fair() && sharpest_crease() <= limit) return Outcome::kFaired;
     std::copy(refined.begin(), refined.end(),
               mesh_.vertices.begin() + static_cast<std::ptrdiff_t>(first_vertex_));
     if (sharpest_crease() <= limit) return Outcome::kRefined;
@@ -503,48 +504,92 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
     return it != directed.end() && it->first == key ? it->second : kNone;
   };
 
+  // How far each loop's patch may go: faired, refined (no fairing), the minimum-weight patch
+  // (no new vertex), or none (the loop stays open).
+  enum Level : std::uint8_t { kFair, kRefine, kPlain, kOpen };
+  const Level start = options.refine ? kFair : kPlain;
+  std::vector<Level> level(report.loops.size(), start);
+  const std::size_t mesh_triangles = mesh.triangles.size(), mesh_vertices = mesh.vertices.size();
   std::vector<Vec3> border;
-  for (const BoundaryLoop& loop : report.loops) {
-    const std::vector<std::uint32_t>& q = loop.vertices;
-    if (!loop.closed || q.size() < 3 || q.size() > limit) {
-      ++stats.kept;
-      continue;
-    }
-    // The rim of a lone triangle: its patch would be the same triangle turned over. Any
-    // triangle on these three vertices has the boundary edge q0 -> q1, so one look-up tells.
-    const auto lone_rim = [&] {
-      const std::uint32_t t = triangle_on(q[0], q[1]);
-      if (t == kNone) return false;
-      const Triangle& tri = mesh.triangles[t];
-      return tri[0] == q[2] || tri[1] == q[2] || tri[2] == q[2];
-    };
-    if (q.size() == 3 && lone_rim()) {
-      ++stats.kept;
-      continue;
-    }
-    border.assign(q.size(), Vec3::Zero());
-    bool found = true;
-    for (std::size_t i = 0; i < q.size() && found; ++i) {
-      const std::uint32_t t = triangle_on(q[i], q[(i + 1) % q.size()]);
-      found = t != kNone;
-      if (!found) break;
-      const Triangle& tri = mesh.triangles[t];
-      const Vec3 normal = (mesh.vertices[tri[1]] - mesh.vertices[tri[0]])
-                              .cross(mesh.vertices[tri[2]] - mesh.vertices[tri[0]]);
-      if (normal.norm() > 0) border[i] = normal.normalized();
-    }
-    const std::size_t before = mesh.triangles.size();
-    if (found && LoopFiller(mesh.vertices, q, border, edges).run(mesh.triangles)) {
-      if (options.refine) {
-        PatchRefiner refiner(mesh, before, q, border, corners, edges);
-        if (refiner.run() == PatchRefiner::Outcome::kFaired) ++stats.faired;
-        stats.vertices += refiner.added();
+  // patch_of[t - mesh_triangles]: the loop whose patch triangle t is
+  std::vector<std::uint32_t> patch_of;
+  while (true) {
+    stats = {};
+    patch_of.clear();
+    for (std::size_t li = 0; li < report.loops.size(); ++li) {
+      const std::vector<std::uint32_t>& q = report.loops[li].vertices;
+      if (!report.loops[li].closed || q.size() < 3 || q.size() > limit || level[li] == kOpen) {
+        ++stats.kept;
+        continue;
       }
-      ++stats.filled;
-      stats.triangles += mesh.triangles.size() - before;
-    } else {
-      ++stats.kept;
+      // The rim of a lone triangle: its patch would be the same triangle turned over. Any
+      // triangle on these three vertices has the boundary edge q0 -> q1, so one look-up tells.
+      const auto lone_rim = [&] {
+        const std::uint32_t t = triangle_on(q[0], q[1]);
+        if (t == kNone) return false;
+        const Triangle& tri = mesh.triangles[t];
+        return tri[0] == q[2] || tri[1] == q[2] || tri[2] == q[2];
+      };
+      if (q.size() == 3 && lone_rim()) {
+        ++stats.kept;
+        continue;
+      }
+      border.assign(q.size(), Vec3::Zero());
+      bool found = true;
+      for (std::size_t i = 0; i < q.size() && found; ++i) {
+        const std::uint32_t t = triangle_on(q[i], q[(i + 1) % q.size()]);
+        found = t != kNone;
+        if (!found) break;
+        const Triangle& tri = mesh.triangles[t];
+        const Vec3 normal = (mesh.vertices[tri[1]] - mesh.vertices[tri[0]])
+                                .cross(mesh.vertices[tri[2]] - mesh.vertices[tri[0]]);
+        if (normal.norm() > 0) border[i] = normal.normalized();
+      }
+      const std::size_t before = mesh.triangles.size();
+      if (found && LoopFiller(mesh.vertices, q, border, edges).run(mesh.triangles)) {
+        if (level[li] != kPlain) {
+          PatchRefiner refiner(mesh, before, q, border, corners, edges);
+          if (refiner.run(level[li] == kFair) == PatchRefiner::Outcome::kFaired) ++stats.faired;
+          stats.vertices += refiner.added();
+        }
+        ++stats.filled;
+        stats.triangles += mesh.triangles.size() - before;
+        patch_of.resize(mesh.triangles.size() - mesh_triangles, static_cast<std::uint32_t>(li));
+      } else {
+        ++stats.kept;
+      }
     }
+    // Guard: a patch must not cross the mesh, another patch or itself (a hole across a thin
+    // part, a scan border capped through the surface, a faired patch bulging through a wall).
+    // Every loop whose patch does is filled again one level flatter, until none does.
+    bool demoted = false;
+    if (!patch_of.empty()) {
+      const SelfIntersections crossing = find_self_intersections(mesh, kAllPairs, mesh_triangles);
+      std::vector<char> crosses(report.loops.size(), 0);
+      auto loop_of = [&](std::uint32_t t) {
+        return t >= mesh_triangles ? patch_of[t - mesh_triangles] : kNone;
+      };
+      // First the patches that cross the mesh or themselves; then, of two patches that only
+      // cross each other, the larger loop's (the later one on a tie) yields.
+      for (const auto& [t1, t2] : crossing.examples) {
+        const std::uint32_t a = loop_of(t1), b = loop_of(t2);
+        if (a == kNone || b == kNone || a == b) crosses[a == kNone ? b : a] = 1;
+      }
+      for (const auto& [t1, t2] : crossing.examples) {
+        const std::uint32_t a = loop_of(t1), b = loop_of(t2);
+        if (a == kNone || b == kNone || a == b || crosses[a] || crosses[b]) continue;
+        const std::size_t na = report.loops[a].vertices.size(), nb = report.loops[b].vertices.size();
+        crosses[na > nb || (na == nb && a > b) ? a : b] = 1;
+      }
+      for (std::size_t li = 0; li < level.size(); ++li)
+        if (crosses[li] && level[li] != kOpen) {
+          level[li] = static_cast<Level>(level[li] + 1);
+          demoted = true;
+        }
+    }
+    if (!demoted) break;
+    mesh.triangles.resize(mesh_triangles);
+    mesh.vertices.resize(mesh_vertices);
   }
   return stats;
 }

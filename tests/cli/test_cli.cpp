@@ -328,7 +328,8 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
       "euler_characteristic "
       "genus angle_min_deg angle_max_deg angle_mean_deg "
       "frac_min_angle_below_10 frac_min_angle_below_20 mean_edge_length "
-      "max_edge_length signed_volume");
+      "max_edge_length signed_volume self_intersections self_intersecting_triangles "
+      "self_intersection_examples");
   for (std::string key; keys >> key;) {
     INFO(key);
     CHECK(j.contains(key));
@@ -346,6 +347,26 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
   CHECK(j["signed_volume"].get<double>() == Approx(1.0));
   CHECK(j["angle_min_deg"].get<double>() == Approx(45.0));
   CHECK(j["angle_max_deg"].get<double>() == Approx(90.0));
+  CHECK(j["self_intersections"] == 0);
+  CHECK(j["self_intersection_examples"] == json::array());
+
+  SECTION("a sheet pushed through the cube: the crossing pairs, named") {
+    scanmesh::recon::Mesh m = unit_cube();
+    const auto s = static_cast<std::uint32_t>(m.vertices.size());
+    m.vertices.insert(m.vertices.end(), {{-1, -1, 0.5}, {2, -1, 0.5}, {2, 2, 0.5}, {-1, 2, 0.5}});
+    m.triangles.push_back({s, s + 1, s + 2});
+    m.triangles.push_back({s, s + 2, s + 3});
+    scanmesh::meshio::write_mesh(m, dir / "pierced.ply");
+    const json p = json_of(run(dir, {"inspect", dir / "pierced.ply", "--json"}));
+    // the plane z = 0.5 cuts the cube's eight side triangles
+    CHECK(p["self_intersecting_triangles"] == 8 + 2);
+    CHECK(p["self_intersections"].get<std::size_t>() >= 8);
+    CHECK(p["self_intersection_examples"].size() ==
+          std::min<std::size_t>(8, p["self_intersections"].get<std::size_t>()));
+    const RunResult text = run(dir, {"inspect", dir / "pierced.ply"});
+    CHECK_THAT(text.out, Catch::Contains("self-intersections"));
+    CHECK_THAT(text.out, Catch::Contains("(10 triangles; first: "));
+  }
 
   SECTION("an open square: one boundary loop of four edges") {
     scanmesh::recon::Mesh sq;

@@ -12,6 +12,7 @@
 
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
+#include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "support/shapes.hpp"
 
@@ -20,6 +21,8 @@ namespace {
 using scanmesh::recon::analyze;
 using scanmesh::recon::fill_holes;
 using scanmesh::recon::FillOptions;
+using scanmesh::recon::FillStats;
+using scanmesh::recon::find_self_intersections;
 using scanmesh::recon::Mesh;
 using scanmesh::recon::Triangle;
 using scanmesh::recon::Vec3;
@@ -73,30 +76,82 @@ TEST_CASE("fill_holes closes two tetrahedron faces with the other two, never rep
 
 TEST_CASE("fill_holes never repeats an edge the mesh has, whatever the vertex numbering",
           "[recon][fill]") {
-  // A flat square as two triangles on the diagonal a-c. Both patches of its rim are flat and
-  // face the other way, so the weights tie; the one on a-c would repeat that edge (and both
-  // triangles). Every numbering of the four corners must give the patch on b-d.
-  const Vec3 corner[4] = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)};
-  std::array<std::uint32_t, 4> label{0, 1, 2, 3};
-  int numberings = 0;
-  do {
-    Mesh m;
-    m.vertices.resize(4);
-    for (int k = 0; k < 4; ++k) m.vertices[label[k]] = corner[k];
-    const std::uint32_t a = label[0], b = label[1], c = label[2], d = label[3];
-    m.triangles = {Triangle{a, b, c}, Triangle{a, c, d}};
-    FillOptions opt;
-    opt.max_edges = 4;
-    INFO("labels " << a << b << c << d);
-    REQUIRE(fill_holes(m, opt).filled == 1);
-    const auto r = analyze(m);
-    CHECK(r.boundary_loops == 0);
-    CHECK(r.non_manifold_edges == 0);
-    CHECK(r.duplicate_triangles == 0);
-    CHECK(r.edges == 6);
-    ++numberings;
-  } while (std::next_permutation(label.begin(), label.end()));
-  CHECK(numberings == 24);
+  // Two triangles on the diagonal a-c. The rim's patch on a-c would repeat that edge (and both
+  // triangles turned over); the one on b-d is the only fill. Square flat: that patch lies on the
+  // square itself, face to face with it (a closed mesh of no volume, whose triangles overlap),
+  // so nothing is added. Square folded along a-c (b and d raised): the patch on b-d closes a
+  // tetrahedron. Every numbering of the four corners must give the same.
+  for (const double lift : {0.0, 0.5}) {
+    const Vec3 corner[4] = {Vec3(0, 0, 0), Vec3(1, 0, lift), Vec3(1, 1, 0), Vec3(0, 1, lift)};
+    std::array<std::uint32_t, 4> label{0, 1, 2, 3};
+    int numberings = 0;
+    do {
+      Mesh m;
+      m.vertices.resize(4);
+      for (int k = 0; k < 4; ++k) m.vertices[label[k]] = corner[k];
+      const std::uint32_t a = label[0], b = label[1], c = label[2], d = label[3];
+      m.triangles = {Triangle{a, b, c}, Triangle{a, c, d}};
+      FillOptions opt;
+      opt.max_edges = 4;
+      INFO("lift " << lift << ", labels " << a << b << c << d);
+      const FillStats stats = fill_holes(m, opt);
+      const auto r = analyze(m);
+      CHECK(r.non_manifold_edges == 0);
+      CHECK(r.duplicate_triangles == 0);
+      CHECK(find_self_intersections(m).pairs == 0);
+      if (lift == 0) {
+        CHECK(stats.filled == 0);
+        CHECK(stats.kept == 1);
+        CHECK(m.triangles.size() == 2);
+      } else {
+        CHECK(stats.filled == 1);
+        CHECK(r.boundary_loops == 0);
+        CHECK(r.edges == 6);
+        CHECK(r.signed_volume != Approx(0.0).margin(1e-9));
+      }
+      ++numberings;
+    } while (std::next_permutation(label.begin(), label.end()));
+    CHECK(numberings == 24);
+  }
+}
+
+TEST_CASE("fill_holes never lets a patch cross the mesh: such a loop stays open",
+          "[recon][fill]") {
+  // A flat frame in z = 0: the square [-2, 2]^2 with the hole [-1, 1]^2, eight triangles.
+  Mesh m;
+  m.vertices = {Vec3(-2, -2, 0), Vec3(2, -2, 0), Vec3(2, 2, 0), Vec3(-2, 2, 0),
+                Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(1, 1, 0), Vec3(-1, 1, 0)};
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    const std::uint32_t o0 = k, o1 = (k + 1) % 4, i0 = 4 + k, i1 = 4 + (k + 1) % 4;
+    m.triangles.push_back({o0, o1, i1});
+    m.triangles.push_back({o0, i1, i0});
+  }
+  FillOptions opt;
+  opt.max_edges = 4;
+  SECTION("alone: the hole is closed; the outer rim's patch would cover the frame") {
+    const FillStats stats = fill_holes(m, opt);
+    CHECK(stats.filled == 1);
+    CHECK(stats.kept == 1);
+    CHECK(analyze(m).boundary_loops == 1);
+    CHECK(find_self_intersections(m).pairs == 0);
+  }
+  SECTION("a sheet through the hole: its patch would cut the sheet, so the hole stays") {
+    const auto s = static_cast<std::uint32_t>(m.vertices.size());
+    m.vertices.insert(m.vertices.end(), {Vec3(0, -0.5, -1), Vec3(0, 0.5, -1), Vec3(0, 0.5, 1),
+                                         Vec3(0, -0.5, 1)});
+    m.triangles.push_back({s, s + 1, s + 2});
+    m.triangles.push_back({s, s + 2, s + 3});
+    const std::size_t before = m.triangles.size();
+    for (const bool refine : {true, false}) {
+      opt.refine = refine;
+      Mesh copy = m;
+      const FillStats stats = fill_holes(copy, opt);
+      CHECK(stats.filled == 0);
+      CHECK(stats.kept == 3);
+      CHECK(copy.triangles.size() == before);
+      CHECK(copy.vertices.size() == m.vertices.size());
+    }
+  }
 }
 
 TEST_CASE("fill_holes closes a reconstructed sphere's cap with a flat, outward patch",

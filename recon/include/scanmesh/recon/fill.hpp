@@ -37,7 +37,9 @@ struct FillStats {
 
 /// Closes the boundary loops of `mesh` with at most `options.max_edges` edges. The patch is
 /// oriented like the triangles around it and never adds an edge the mesh already has, so a
-/// manifold, consistently oriented mesh stays so (and the genus is unchanged). New vertices (of
+/// manifold, consistently oriented mesh stays so (and the genus is unchanged). No patch crosses
+/// the mesh, itself or another patch: such a loop is filled flatter (unfaired, then without new
+/// vertices) or, failing that, left open and counted as kept. New vertices (of
 /// the refinement) are appended to mesh.vertices; existing vertices never move. A mesh with non-manifold edges or vertices is left as it is (every loop kept).
 FillStats fill_holes(Mesh& mesh, const FillOptions& options);
 

@@ -1,0 +1,37 @@
+// Self-intersection check: pairs of triangles that meet other than along the edge or at the
+// vertex they share. CAD import, offsetting and 3D printing reject such meshes even when they are
+// manifold and consistently oriented, so `scanmesh inspect` reports them. Pure: no I/O.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::recon {
+
+struct SelfIntersections {
+  std::size_t pairs = 0;      ///< intersecting triangle pairs
+  std::size_t triangles = 0;  ///< triangles in at least one such pair
+  /// The first pairs found (lower triangle index first), in a deterministic order.
+  std::vector<std::array<std::uint32_t, 2>> examples;
+};
+
+/// Finds every pair of triangles whose intersection is more than their shared vertices: crossing
+/// triangles, a triangle touching another's face, coplanar overlaps (a fold onto a neighbour
+/// across their shared edge) and repeated triangles. Degenerate triangles (zero area, a repeated
+/// index) are skipped: analyze() counts them. Coplanarity and touching are decided with a
+/// tolerance of 1e-9 times the pair's longest edge. Cost: a uniform grid of cells two mean
+/// edges wide, then an exact test for the pairs whose bounding boxes overlap; about linear in
+/// the number of triangles.
+/// With `from`, only pairs with at least one triangle of index >= from are tested (what was
+/// added to a mesh: hole-filling patches). max_examples = kAllPairs keeps every pair found.
+SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_examples = 16,
+                                          std::size_t from = 0);
+
+inline constexpr std::size_t kAllPairs = static_cast<std::size_t>(-1);
+
+}  // namespace scanmesh::recon

@@ -1,0 +1,262 @@
+// Self-intersection check (see intersections.hpp): a uniform grid over the triangles' bounding
+// boxes finds the candidate pairs, and an interval test on the line where the two planes meet
+// (Möller, "A fast triangle-triangle intersection test", 1997), or an overlap test in the plane
+// for coplanar pairs, decides each one, leaving out what the pair legitimately shares.
+// SPDX-License-Identifier: MIT
+#include "scanmesh/recon/intersections.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace scanmesh::recon {
+namespace {
+
+constexpr double kTolerance = 1e-9;  // of the pair's longest edge
+/// A triangle whose bounding box covers more cells than this is tested against every triangle
+/// whose box it overlaps (a long patch triangle must not fill the grid).
+constexpr std::size_t kMaxCells = 512;
+
+struct Box {
+  Vec3 lo, hi;
+  [[nodiscard]] bool overlaps(const Box& o) const {
+    return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
+  }
+};
+
+/// The points of a triangle on the other triangle's plane (signed distances d, exact zeros for
+/// vertices on it), as an interval of their coordinate along `dir`. False when none is.
+bool interval_on_line(const std::array<Vec3, 3>& p, const std::array<double, 3>& d, const Vec3& dir,
+                      double& lo, double& hi) {
+  lo = std::numeric_limits<double>::infinity();
+  hi = -lo;
+  for (int k = 0; k < 3; ++k) {
+    const int l = (k + 1) % 3;
+    if (d[k] == 0) {
+      const double t = dir.dot(p[k]);
+      lo = std::min(lo, t);
+      hi = std::max(hi, t);
+    }
+    if ((d[k] > 0 && d[l] < 0) || (d[k] < 0 && d[l] > 0)) {
+      const double t = dir.dot(p[k] + (d[k] / (d[k] - d[l])) * (p[l] - p[k]));
+      lo = std::min(lo, t);
+      hi = std::max(hi, t);
+    }
+  }
+  return lo <= hi;
+}
+
+double orient2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  const Eigen::Vector2d u = b - a, w = c - a;
+  return u.x() * w.y() - u.y() * w.x();
+}
+
+/// Two triangles in one plane (projected to 2D): do they overlap beyond the corners they share
+/// (shared_p[k]: corner k of p is a corner of q; likewise shared_q)?
+bool coplanar_overlap(const std::array<Eigen::Vector2d, 3>& p, const std::array<Eigen::Vector2d, 3>& q,
+                      const std::array<bool, 3>& shared_p, const std::array<bool, 3>& shared_q,
+                      int shared, double eps2) {
+  auto sign = [eps2](double v) { return v > eps2 ? 1 : (v < -eps2 ? -1 : 0); };
+  if (shared == 2) {  // on the same side of the shared edge: one folds onto the other
+    int op = 0, oq = 0;
+    while (shared_p[op]) ++op;
+    while (shared_q[oq]) ++oq;
+    const Eigen::Vector2d& a = p[(op + 1) % 3];
+    const Eigen::Vector2d& b = p[(op + 2) % 3];
+    const int sp = sign(orient2(a, b, p[op])), sq = sign(orient2(a, b, q[oq]));
+    return sp != 0 && sp == sq;
+  }
+  // Edges that cross properly (edges of a shared corner meet there, and are left out).
+  for (int i = 0; i < 3; ++i) {
+    const int i1 = (i + 1) % 3;
+    for (int j = 0; j < 3; ++j) {
+      const int j1 = (j + 1) % 3;
+      if ((shared_p[i] || shared_p[i1]) && (shared_q[j] || shared_q[j1])) continue;
+      const int a = sign(orient2(p[i], p[i1], q[j])), b = sign(orient2(p[i], p[i1], q[j1]));
+      const int c = sign(orient2(q[j], q[j1], p[i])), d = sign(orient2(q[j], q[j1], p[i1]));
+      if (a * b < 0 && c * d < 0) return true;
+    }
+  }
+  // A corner strictly inside the other triangle.
+  auto inside = [&](const Eigen::Vector2d& x, const std::array<Eigen::Vector2d, 3>& t) {
+    const int s0 = sign(orient2(t[0], t[1], x)), s1 = sign(orient2(t[1], t[2], x)),
+              s2 = sign(orient2(t[2], t[0], x));
+    return s0 != 0 && s0 == s1 && s1 == s2;
+  };
+  for (int k = 0; k < 3; ++k) {
+    if (!shared_p[k] && inside(p[k], q)) return true;
+    if (!shared_q[k] && inside(q[k], p)) return true;
+  }
+  return false;
+}
+
+/// Do triangles s and t (non-degenerate) intersect other than along what they share?
+bool pair_intersects(const Mesh& mesh, const Triangle& s, const Triangle& t) {
+  std::array<bool, 3> shared_p{}, shared_q{};
+  int shared = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (s[i] == t[j]) {
+        shared_p[i] = shared_q[j] = true;
+        ++shared;
+      }
+  if (shared == 3) return true;  // the same triangle twice
+  const std::array<Vec3, 3> p{mesh.vertices[s[0]], mesh.vertices[s[1]], mesh.vertices[s[2]]};
+  const std::array<Vec3, 3> q{mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]};
+  double longest = 0;
+  for (int k = 0; k < 3; ++k) {
+    longest = std::max(longest, (p[(k + 1) % 3] - p[k]).squaredNorm());
+    longest = std::max(longest, (q[(k + 1) % 3] - q[k]).squaredNorm());
+  }
+  longest = std::sqrt(longest);
+  const double eps = kTolerance * longest;
+  const Vec3 n1 = (p[1] - p[0]).cross(p[2] - p[0]).normalized();
+  const Vec3 n2 = (q[1] - q[0]).cross(q[2] - q[0]).normalized();
+  // Signed distances to the other plane; shared corners and near-zero ones are on it.
+  std::array<double, 3> dp{}, dq{};
+  for (int k = 0; k < 3; ++k) {
+    dp[k] = shared_p[k] ? 0.0 : n2.dot(p[k] - q[0]);
+    dq[k] = shared_q[k] ? 0.0 : n1.dot(q[k] - p[0]);
+    if (std::abs(dp[k]) <= eps) dp[k] = 0;
+    if (std::abs(dq[k]) <= eps) dq[k] = 0;
+  }
+  auto one_side = [](const std::array<double, 3>& d) {
+    return (d[0] > 0 && d[1] > 0 && d[2] > 0) || (d[0] < 0 && d[1] < 0 && d[2] < 0);
+  };
+  if (one_side(dp) || one_side(dq)) return false;
+  const bool coplanar = (dp[0] == 0 && dp[1] == 0 && dp[2] == 0) || (dq[0] == 0 && dq[1] == 0 && dq[2] == 0);
+  if (coplanar) {
+    int drop = 0;  // project along the normal's largest axis
+    n1.cwiseAbs().maxCoeff(&drop);
+    const int a = (drop + 1) % 3, b = (drop + 2) % 3;
+    std::array<Eigen::Vector2d, 3> p2, q2;
+    for (int k = 0; k < 3; ++k) {
+      p2[k] = Eigen::Vector2d(p[k][a], p[k][b]);
+      q2[k] = Eigen::Vector2d(q[k][a], q[k][b]);
+    }
+    return coplanar_overlap(p2, q2, shared_p, shared_q, shared, eps * longest);
+  }
+  // Two planes through one edge meet only on that edge's line, and each triangle lies on one
+  // side of it: the triangles share the edge and nothing else.
+  if (shared == 2) return false;
+  const Vec3 dir = n1.cross(n2).normalized();
+  double lo1 = 0, hi1 = 0, lo2 = 0, hi2 = 0;
+  if (!interval_on_line(p, dp, dir, lo1, hi1) || !interval_on_line(q, dq, dir, lo2, hi2))
+    return false;
+  const double overlap = std::min(hi1, hi2) - std::max(lo1, lo2);
+  // A shared corner is in both intervals: only more than that point is an intersection.
+  return shared == 1 ? overlap > eps : overlap >= 0;
+}
+
+}  // namespace
+
+SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_examples,
+                                          std::size_t from) {
+  SelfIntersections out;
+  const std::size_t nt = mesh.triangles.size();
+  const std::size_t nv = mesh.vertices.size();
+  std::vector<std::uint32_t> valid;
+  std::vector<Box> box(nt);
+  double edge_sum = 0;
+  Vec3 origin = Vec3::Constant(std::numeric_limits<double>::infinity());
+  for (std::uint32_t i = 0; i < nt; ++i) {
+    const Triangle& t = mesh.triangles[i];
+    if (t[0] >= nv || t[1] >= nv || t[2] >= nv || t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+      continue;
+    const Vec3 &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+    if (!(a.allFinite() && b.allFinite() && c.allFinite())) continue;
+    if ((b - a).cross(c - a).squaredNorm() == 0) continue;
+    box[i] = {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)};
+    origin = origin.cwiseMin(box[i].lo);
+    edge_sum += (b - a).norm() + (c - b).norm() + (a - c).norm();
+    valid.push_back(i);
+  }
+  if (valid.size() < 2) return out;
+  // Cells two mean edges wide, at most 2^20 a side (21 bits a coordinate in the key).
+  Vec3 extent = Vec3::Zero();
+  for (std::uint32_t i : valid) extent = extent.cwiseMax(box[i].hi - origin);
+  double cell = 2 * edge_sum / (3.0 * static_cast<double>(valid.size()));
+  cell = std::max(cell, extent.maxCoeff() / double(1 << 20));
+  if (!(cell > 0)) return out;
+  auto coord = [&](double v, int axis) {
+    return static_cast<std::uint64_t>(std::floor((v - origin[axis]) / cell));
+  };
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> entries;  // (cell key, triangle)
+  std::vector<std::uint32_t> big;                                // triangles over kMaxCells cells
+  std::vector<std::array<std::uint64_t, 6>> range(nt);
+  // With `from`, the cells of the new triangles first: an older triangle is entered only in
+  // those (nothing else can meet a new one).
+  std::vector<std::uint64_t> wanted;
+  for (const bool is_new : {true, false}) {
+    if (!is_new && from == 0) break;
+    for (std::uint32_t i : valid) {
+      if (from > 0 && (i >= from) != is_new) continue;
+      auto& r = range[i];
+      for (int k = 0; k < 3; ++k) {
+        r[k] = coord(box[i].lo[k], k);
+        r[3 + k] = coord(box[i].hi[k], k);
+      }
+      const std::uint64_t cells = (r[3] - r[0] + 1) * (r[4] - r[1] + 1) * (r[5] - r[2] + 1);
+      if (cells > kMaxCells) {
+        big.push_back(i);
+        continue;
+      }
+      for (std::uint64_t z = r[2]; z <= r[5]; ++z)
+        for (std::uint64_t y = r[1]; y <= r[4]; ++y)
+          for (std::uint64_t x = r[0]; x <= r[3]; ++x) {
+            const std::uint64_t key = (z << 42) | (y << 21) | x;
+            if (from > 0 && !is_new && !std::binary_search(wanted.begin(), wanted.end(), key))
+              continue;
+            entries.emplace_back(key, i);
+          }
+    }
+    if (from > 0 && is_new) {
+      for (const auto& [key, i] : entries) wanted.push_back(key);
+      std::sort(wanted.begin(), wanted.end());
+      wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+    }
+  }
+  std::sort(entries.begin(), entries.end());
+  std::vector<std::uint8_t> involved(nt, 0);
+  auto record = [&](std::uint32_t a, std::uint32_t b) {
+    ++out.pairs;
+    involved[a] = involved[b] = 1;
+    if (out.examples.size() < max_examples) out.examples.push_back({std::min(a, b), std::max(a, b)});
+  };
+  for (std::size_t g = 0; g < entries.size();) {
+    std::size_t e = g;
+    while (e < entries.size() && entries[e].first == entries[g].first) ++e;
+    if (entries[e - 1].second < from) {  // ids ascend within a cell: none is new
+      g = e;
+      continue;
+    }
+    const std::uint64_t key = entries[g].first;
+    const std::uint64_t cx = key & 0x1fffff, cy = (key >> 21) & 0x1fffff, cz = key >> 42;
+    for (std::size_t i = g; i < e; ++i) {
+      const std::uint32_t a = entries[i].second;
+      for (std::size_t j = i + 1; j < e; ++j) {
+        const std::uint32_t b = entries[j].second;
+        if (b < from || !box[a].overlaps(box[b])) continue;
+        // Test the pair once: in the cell holding the low corner of the boxes' overlap.
+        if (std::max(range[a][0], range[b][0]) != cx || std::max(range[a][1], range[b][1]) != cy ||
+            std::max(range[a][2], range[b][2]) != cz)
+          continue;
+        if (pair_intersects(mesh, mesh.triangles[a], mesh.triangles[b])) record(a, b);
+      }
+    }
+    g = e;
+  }
+  std::sort(big.begin(), big.end());
+  for (std::uint32_t a : big) {
+    for (std::uint32_t b : valid) {
+      if (b == a || (b < a && std::binary_search(big.begin(), big.end(), b))) continue;
+      if (a < from && b < from) continue;
+      if (!box[a].overlaps(box[b])) continue;
+      if (pair_intersects(mesh, mesh.triangles[a], mesh.triangles[b])) record(a, b);
+    }
+  }
+  out.triangles = static_cast<std::size_t>(std::count(involved.begin(), involved.end(), 1));
+  return out;
+}
+
+}  // namespace scanmesh::recon

@@ -1,0 +1,126 @@
+// Self-intersection check: hand-made pairs for every case the test distinguishes, a clean closed
+// mesh, and the grid's path for triangles that span many cells.
+// SPDX-License-Identifier: MIT
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "scanmesh/recon/intersections.hpp"
+
+using scanmesh::recon::find_self_intersections;
+using scanmesh::recon::Mesh;
+using scanmesh::recon::Triangle;
+using scanmesh::recon::Vec3;
+
+namespace {
+
+/// Two triangles given by their corners; corners closer than 1e-12 share one vertex index.
+Mesh pair_of(const std::array<Vec3, 3>& s, const std::array<Vec3, 3>& t) {
+  Mesh m;
+  auto index = [&](const Vec3& p) {
+    for (std::uint32_t i = 0; i < m.vertices.size(); ++i)
+      if ((m.vertices[i] - p).norm() < 1e-12) return i;
+    m.vertices.push_back(p);
+    return static_cast<std::uint32_t>(m.vertices.size() - 1);
+  };
+  m.triangles.push_back({index(s[0]), index(s[1]), index(s[2])});
+  m.triangles.push_back({index(t[0]), index(t[1]), index(t[2])});
+  return m;
+}
+
+std::size_t crossing_pairs(const Mesh& m) { return find_self_intersections(m).pairs; }
+
+/// A closed latitude-longitude sphere: poles and rings-1 rings of `sectors` vertices.
+Mesh uv_sphere(double r, std::uint32_t rings, std::uint32_t sectors) {
+  Mesh m;
+  const double pi = std::acos(-1.0);
+  m.vertices.emplace_back(0, 0, r);
+  for (std::uint32_t k = 1; k < rings; ++k)
+    for (std::uint32_t j = 0; j < sectors; ++j) {
+      const double th = pi * k / rings, ph = 2 * pi * j / sectors;
+      m.vertices.emplace_back(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph),
+                              r * std::cos(th));
+    }
+  m.vertices.emplace_back(0, 0, -r);
+  const auto south = static_cast<std::uint32_t>(m.vertices.size() - 1);
+  auto at = [&](std::uint32_t k, std::uint32_t j) { return 1 + (k - 1) * sectors + j % sectors; };
+  for (std::uint32_t j = 0; j < sectors; ++j) {
+    m.triangles.push_back({0, at(1, j), at(1, j + 1)});
+    m.triangles.push_back({south, at(rings - 1, j + 1), at(rings - 1, j)});
+    for (std::uint32_t k = 1; k + 1 < rings; ++k) {
+      m.triangles.push_back({at(k, j), at(k + 1, j), at(k + 1, j + 1)});
+      m.triangles.push_back({at(k, j), at(k + 1, j + 1), at(k, j + 1)});
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("find_self_intersections: each kind of pair", "[recon][intersections]") {
+  const Vec3 o(0, 0, 0), x(1, 0, 0), y(0, 1, 0);
+  const std::array<Vec3, 3> base{o, x, y};  // in z = 0
+  SECTION("disjoint, parallel, and apart") {
+    CHECK(crossing_pairs(pair_of(base, {Vec3(0, 0, 1), Vec3(1, 0, 1), Vec3(0, 1, 1)})) == 0);
+    CHECK(crossing_pairs(pair_of(base, {Vec3(2, 2, -1), Vec3(3, 2, -1), Vec3(2, 2, 1)})) == 0);
+  }
+  SECTION("crossing through the face") {
+    const Mesh m = pair_of(base, {Vec3(0.2, 0.2, -1), Vec3(0.3, 0.2, 1), Vec3(0.2, 0.3, 1)});
+    const auto r = find_self_intersections(m);
+    CHECK(r.pairs == 1);
+    CHECK(r.triangles == 2);
+    REQUIRE(r.examples.size() == 1);
+    CHECK(r.examples[0] == std::array<std::uint32_t, 2>{0, 1});
+  }
+  SECTION("one corner touching the other's face") {
+    CHECK(crossing_pairs(pair_of(base, {Vec3(0.2, 0.2, 0), Vec3(0.3, 0.2, 1), Vec3(0.2, 0.3, 1)})) ==
+          1);
+  }
+  SECTION("sharing a vertex") {
+    // only the vertex: a fan around it
+    CHECK(crossing_pairs(pair_of(base, {o, Vec3(-1, 0, 0.5), Vec3(0, -1, 0.5)})) == 0);
+    // the other triangle goes on through the face
+    CHECK(crossing_pairs(pair_of(base, {o, Vec3(0.5, 0.2, 1), Vec3(0.4, 0.4, -1)})) == 1);
+    // in the same plane: a wedge beside it, and one overlapping it
+    CHECK(crossing_pairs(pair_of(base, {o, y, Vec3(-1, -1, 0)})) == 0);
+    CHECK(crossing_pairs(pair_of(base, {o, Vec3(1, 1, 0), Vec3(-0.5, 1, 0)})) == 1);
+  }
+  SECTION("sharing an edge") {
+    // a ridge, a flat continuation, and a fold back onto the first triangle
+    CHECK(crossing_pairs(pair_of(base, {x, o, Vec3(0.5, -1, 1)})) == 0);
+    CHECK(crossing_pairs(pair_of(base, {x, o, Vec3(0.5, -1, 0)})) == 0);
+    CHECK(crossing_pairs(pair_of(base, {x, o, Vec3(0.3, 0.3, 0)})) == 1);
+  }
+  SECTION("coplanar, no shared vertex") {
+    CHECK(crossing_pairs(pair_of(base, {Vec3(0.1, 0.1, 0), Vec3(2, 0.1, 0), Vec3(0.1, 2, 0)})) == 1);
+    CHECK(crossing_pairs(pair_of(base, {Vec3(2, 0, 0), Vec3(3, 0, 0), Vec3(2, 1, 0)})) == 0);
+  }
+  SECTION("the same triangle twice, and degenerate triangles left to analyze()") {
+    Mesh m = pair_of(base, base);
+    m.triangles[1] = {m.triangles[0][0], m.triangles[0][2], m.triangles[0][1]};
+    CHECK(crossing_pairs(m) == 1);
+    Mesh d = pair_of(base, {Vec3(0.2, 0.2, -1), Vec3(0.2, 0.2, 1), Vec3(0.2, 0.2, 2)});  // a line
+    CHECK(crossing_pairs(d) == 0);
+  }
+}
+
+TEST_CASE("find_self_intersections: a closed mesh has none; a sheet pushed through it is found",
+          "[recon][intersections]") {
+  Mesh sphere = uv_sphere(10.0, 24, 48);
+  CHECK(crossing_pairs(sphere) == 0);
+  // One large sheet through the middle: each of its two triangles spans many grid cells (the
+  // path for long triangles) and crosses the sphere along its equator.
+  const auto base = static_cast<std::uint32_t>(sphere.vertices.size());
+  sphere.vertices.insert(sphere.vertices.end(), {Vec3(-20, -20, 0.1), Vec3(20, -20, 0.1),
+                                                 Vec3(20, 20, 0.1), Vec3(-20, 20, 0.1)});
+  const std::size_t sphere_triangles = sphere.triangles.size();
+  sphere.triangles.push_back({base, base + 1, base + 2});
+  sphere.triangles.push_back({base, base + 2, base + 3});
+  const auto r = find_self_intersections(sphere, scanmesh::recon::kAllPairs);
+  // The plane z = 0.1 crosses one band of 48 quads (96 triangles) around the equator.
+  CHECK(r.triangles == 96 + 2);
+  CHECK(r.pairs == r.examples.size());
+  CHECK(r.pairs >= 96);
+  for (const auto& [a, b] : r.examples) CHECK(b >= sphere_triangles);
+  // Only what was added: the same pairs.
+  CHECK(find_self_intersections(sphere, 0, sphere_triangles).pairs == r.pairs);
+}
