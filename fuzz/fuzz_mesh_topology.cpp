@@ -1,9 +1,9 @@
 // libFuzzer entry point for the mesh topology code that `scanmesh inspect` and the hole filling
 // run on meshes from outside: a mesh parsed from the bytes (first byte: OBJ, ASCII/binary STL or
 // PLY; next bit of that byte: flat patches or refined and faired ones) goes through analyze()
-// and fill_holes(). Only scanmesh::Error is an expected outcome; a manifold, consistently
-// oriented input must stay so after filling, with each filled loop gone, the added vertices
-// counted and the existing ones unmoved.
+// fill_holes() and find_self_intersections(). Only scanmesh::Error is an expected outcome; a
+// manifold, consistently oriented input must stay so after filling, with each filled loop gone,
+// the added vertices counted, the existing ones unmoved, and no crossing added by a patch.
 // SPDX-License-Identifier: MIT
 #include <cstddef>
 #include <cstdint>
@@ -15,6 +15,7 @@
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
+#include "scanmesh/recon/intersections.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
@@ -36,6 +37,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     if (mesh.triangles.size() > 4096) return 0;  // keep each run short
     const recon::MeshReport before = recon::analyze(mesh, true);
+    const recon::SelfIntersections crossing = recon::find_self_intersections(mesh, 4);
+    if (crossing.examples.size() > crossing.pairs || crossing.triangles > 2 * crossing.pairs ||
+        crossing.triangles > mesh.triangles.size())
+      __builtin_trap();
+    for (const auto& [a, b] : crossing.examples)
+      if (a >= b || b >= mesh.triangles.size()) __builtin_trap();
+    const std::size_t old_triangles = mesh.triangles.size();
     recon::FillOptions opt;
     opt.max_edges = 64;
     opt.refine = (data[0] / 3) % 2 == 0;
@@ -54,6 +62,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           !after.orientation_consistent)
         __builtin_trap();
       if (after.boundary_loops + stats.filled != before.boundary_loops) __builtin_trap();
+      if (recon::find_self_intersections(mesh, 0, old_triangles).pairs != 0) __builtin_trap();
     }
   } catch (const scanmesh::Error&) {
     // malformed input: the expected way to reject it

@@ -178,8 +178,12 @@ SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_exam
   double cell = 2 * edge_sum / (3.0 * static_cast<double>(valid.size()));
   cell = std::max(cell, extent.maxCoeff() / double(1 << 20));
   if (!(cell > 0)) return out;
+  // Clamped, NaN to 0: an extent that overflows (coordinates near the double range) must not
+  // make an out-of-range conversion; such triangles then share a few cells.
+  constexpr double kTop = double((1 << 21) - 1);
   auto coord = [&](double v, int axis) {
-    return static_cast<std::uint64_t>(std::floor((v - origin[axis]) / cell));
+    const double c = std::floor((v - origin[axis]) / cell);
+    return static_cast<std::uint64_t>(c >= 0 && c <= kTop ? c : (c > kTop ? kTop : 0.0));
   };
   std::vector<std::pair<std::uint64_t, std::uint32_t>> entries;  // (cell key, triangle)
   std::vector<std::uint32_t> big;                                // triangles over kMaxCells cells
