@@ -92,8 +92,8 @@ class LoopFiller {
         // as a side (zero when degenerate: a crease of 180 degrees).
         if (split_[i * n + j] != kNone) {
           const Vec3 normal = patch_normal(i, split_[i * n + j], j);
-          const double len2 = normal.norm();
-          if (len2 > 0) unit_[i * n + j] = normal / len2;
+          const double len = normal.norm();
+          if (len > 0) unit_[i * n + j] = normal / len;
         }
       }
     }

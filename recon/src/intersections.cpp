@@ -183,11 +183,11 @@ SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_exam
   constexpr double kTop = double((1 << 21) - 1);
   auto coord = [&](double v, int axis) {
     const double c = std::floor((v - origin[axis]) / cell);
-    return static_cast<std::uint64_t>(c >= 0 && c <= kTop ? c : (c > kTop ? kTop : 0.0));
+    return static_cast<std::uint32_t>(c >= 0 && c <= kTop ? c : (c > kTop ? kTop : 0.0));
   };
   std::vector<std::pair<std::uint64_t, std::uint32_t>> entries;  // (cell key, triangle)
   std::vector<std::uint32_t> big;                                // triangles over kMaxCells cells
-  std::vector<std::array<std::uint64_t, 6>> range(nt);
+  std::vector<std::array<std::uint32_t, 6>> range(nt);  // cell ranges: lo xyz, hi xyz
   // With `from`, the cells of the new triangles first: an older triangle is entered only in
   // those (nothing else can meet a new one).
   std::vector<std::uint64_t> wanted;
@@ -200,7 +200,7 @@ SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_exam
         r[k] = coord(box[i].lo[k], k);
         r[3 + k] = coord(box[i].hi[k], k);
       }
-      const std::uint64_t cells = (r[3] - r[0] + 1) * (r[4] - r[1] + 1) * (r[5] - r[2] + 1);
+      const std::uint64_t cells = std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1);
       if (cells > kMaxCells) {
         big.push_back(i);
         continue;
