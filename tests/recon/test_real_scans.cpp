@@ -36,6 +36,9 @@ struct Case {
   bool check_usage = true;  // at least min_usage of the reduced points become vertices
   double min_usage = 0.998;  // the fraction checked when check_usage
   std::optional<long> max_genus = std::nullopt;  // upper bound, where the exact genus is not reached yet
+  /// Triangle pairs that cross (self-intersections): none, except where the front is known to
+  /// pierce the surface (recon/README "Known limits"); there, a bound against regression.
+  std::size_t max_crossings = 0;
 };
 
 /// Longest edge of each triangle over the spacing around its vertices (distance to the 6th
@@ -120,6 +123,9 @@ void run_case(const Case& c) {
   if (c.max_genus) CHECK(rep.genus <= *c.max_genus);
   if (c.components) CHECK(rep.components == *c.components);
   CHECK(worst_bridge_ratio(r.mesh) < 6.0);
+  const recon::SelfIntersections crossing = recon::find_self_intersections(r.mesh);
+  INFO("crossing triangle pairs: " << crossing.pairs);
+  CHECK(crossing.pairs <= c.max_crossings);
   // Slivers: after the flips, at most 0.25 % of the triangles have a corner under 10 degrees
   // (0.1-0.33 % before them).
   CHECK(rep.frac_min_angle_below_10 < 0.0025);
@@ -170,26 +176,34 @@ TEST_CASE("real scan: bunny points (bun_zipper) keep exactly the 5 holes of the 
             "bunny/reconstruction/bun_zipper.ply", 5, 0, 1, true});
 }
 
+// Self-intersections measured: bun000 32 pairs, bun045 (registered) 14, the merged scans 5, the
+// casting 196 (recon/README, "Known limits"); the bounds leave room for the front's sensitivity
+// to order.
 TEST_CASE("real scan: raw range scan bun000", "[recon][real][slow]") {
-  run_case({"bun000", {"bunny/data/bun000.ply"}, "", "bunny/reconstruction/bun_zipper.ply",
-            std::nullopt, std::nullopt, std::nullopt, false});
+  Case c{"bun000", {"bunny/data/bun000.ply"}, "", "bunny/reconstruction/bun_zipper.ply",
+         std::nullopt, std::nullopt, std::nullopt, false};
+  c.max_crossings = 48;
+  run_case(c);
 }
 
 TEST_CASE("real scan: raw range scan bun045 (registered)", "[recon][real][slow]") {
-  run_case({"bun045", {"bunny/data/bun045.ply"}, "bunny/data/bun.conf",
-            "bunny/reconstruction/bun_zipper.ply", std::nullopt, std::nullopt, std::nullopt,
-            false});
+  Case c{"bun045", {"bunny/data/bun045.ply"}, "bunny/data/bun.conf",
+         "bunny/reconstruction/bun_zipper.ply", std::nullopt, std::nullopt, std::nullopt, false};
+  c.max_crossings = 24;
+  run_case(c);
 }
 
 TEST_CASE("real scan: ten raw bunny scans merged with bun.conf make one component",
           "[recon][real][slow]") {
-  run_case({"bunny-merged",
-            {"bunny/data/bun000.ply", "bunny/data/bun045.ply", "bunny/data/bun090.ply",
-             "bunny/data/bun180.ply", "bunny/data/bun270.ply", "bunny/data/bun315.ply",
-             "bunny/data/chin.ply", "bunny/data/ear_back.ply", "bunny/data/top2.ply",
-             "bunny/data/top3.ply"},
-            "bunny/data/bun.conf", "bunny/reconstruction/bun_zipper.ply", std::nullopt,
-            std::nullopt, 1, true});
+  Case c{"bunny-merged",
+         {"bunny/data/bun000.ply", "bunny/data/bun045.ply", "bunny/data/bun090.ply",
+          "bunny/data/bun180.ply", "bunny/data/bun270.ply", "bunny/data/bun315.ply",
+          "bunny/data/chin.ply", "bunny/data/ear_back.ply", "bunny/data/top2.ply",
+          "bunny/data/top3.ply"},
+         "bunny/data/bun.conf", "bunny/reconstruction/bun_zipper.ply", std::nullopt,
+         std::nullopt, 1, true};
+  c.max_crossings = 10;
+  run_case(c);
 }
 
 TEST_CASE("real scan: igea closes (genus 0, no boundary)", "[recon][real][slow]") {
@@ -217,6 +231,7 @@ TEST_CASE("real scan: casting (thin walls) gives a valid mesh on the surface",
          std::nullopt, 1, true};
   c.min_usage = 0.99;
   c.max_genus = 17;
+  c.max_crossings = 250;
   run_case(c);
 }
 
