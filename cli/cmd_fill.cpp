@@ -74,6 +74,7 @@ int run_fill(const FillArgs& args) {
     j["boundary_loops_before"] = before.boundary_loops;
     j["filled_holes"] = stats.filled;
     j["kept_loops"] = stats.kept;
+    j["crossing_loops"] = stats.crossing;
     j["fill_triangles"] = stats.triangles;
     j["fill_vertices"] = stats.vertices;
     j["faired_holes"] = stats.faired;
@@ -95,7 +96,8 @@ int run_fill(const FillArgs& args) {
               << "boundary loops   " << before.boundary_loops << " -> " << after.boundary_loops
               << "\n"
               << "filled holes     " << stats.filled << " (" << stats.triangles << " triangles, "
-              << stats.vertices << " new vertices; " << stats.kept << " loops kept)\n"
+              << stats.vertices << " new vertices; " << stats.kept << " loops kept, "
+              << stats.crossing << " of them because a patch would cross the mesh)\n"
               << "vertices         " << mesh.vertices.size() << "\n"
               << "triangles        " << mesh.triangles.size() << "\n"
               << "genus            " << after.genus << "\n"

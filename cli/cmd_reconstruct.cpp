@@ -209,6 +209,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["fill_triangles"] = res.fill.triangles;
     j["fill_vertices"] = res.fill.vertices;
     j["faired_holes"] = res.fill.faired;
+    j["crossing_loops"] = res.fill.crossing;
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;
@@ -231,7 +232,8 @@ int run_reconstruct(const ReconstructArgs& args) {
     if (args.fill_holes > 0)
       std::cout << "filled holes     " << res.fill.filled << " (" << res.fill.triangles
                 << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept
-                << " loops kept)\n";
+                << " loops kept, " << res.fill.crossing
+                << " of them because a patch would cross the mesh)\n";
     std::cout
               << "outliers         " << res.outliers.size() << "\n"
               << "manifold         "

@@ -520,6 +520,7 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
       const std::vector<std::uint32_t>& q = report.loops[li].vertices;
       if (!report.loops[li].closed || q.size() < 3 || q.size() > limit || level[li] == kOpen) {
         ++stats.kept;
+        if (level[li] == kOpen) ++stats.crossing;
         continue;
       }
       // The rim of a lone triangle: its patch would be the same triangle turned over. Any

@@ -671,7 +671,38 @@ TEST_CASE("fill closes an existing mesh's holes, and refuses what it cannot fill
   REQUIRE(r.status == 0);
   CHECK(json_of(r).at("filled_holes") == 0);
   CHECK(json_of(r).at("kept_loops") == 1);
+  CHECK(json_of(r).at("crossing_loops") == 0);  // kept for its size, not for crossing
   CHECK(json_of(r).at("boundary_loops") == 1);
+
+  // A sheet through the hole: every patch would cut it, so the hole is kept and said why.
+  {
+    scanmesh::recon::Mesh pierced = scanmesh::meshio::read_mesh(open_mesh);
+    const std::size_t mesh_vertices = pierced.vertices.size();
+    scanmesh::recon::Vec3 lo = pierced.vertices[0], hi = lo;
+    for (const auto& v : pierced.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+    const scanmesh::recon::Vec3 c = 0.5 * (lo + hi);
+    const double r2 = 0.6 * (hi - lo).maxCoeff();  // a vertical sheet through the middle, long
+    const auto s = static_cast<std::uint32_t>(mesh_vertices);
+    pierced.vertices.insert(pierced.vertices.end(),
+                            {c + scanmesh::recon::Vec3(0, -0.2 * r2, -r2),
+                             c + scanmesh::recon::Vec3(0, 0.2 * r2, -r2),
+                             c + scanmesh::recon::Vec3(0, 0.2 * r2, r2),
+                             c + scanmesh::recon::Vec3(0, -0.2 * r2, r2)});
+    pierced.triangles.push_back({s, s + 1, s + 2});
+    pierced.triangles.push_back({s, s + 2, s + 3});
+    scanmesh::meshio::write_mesh(pierced, dir / "pierced.ply");
+    r = run(dir, {"fill", (dir / "pierced.ply").string(), "-o", (dir / "pierced_out.ply").string(),
+                  "--json"});
+    INFO(describe(r));
+    REQUIRE(r.status == 0);
+    CHECK(json_of(r).at("filled_holes") == 0);
+    CHECK(json_of(r).at("crossing_loops") == 2);  // the sphere's hole and the sheet's own rim
+    r = run(dir, {"fill", (dir / "pierced.ply").string(), "-o", (dir / "pierced_out.ply").string()});
+    CHECK_THAT(r.out, Catch::Contains("2 of them because a patch would cross the mesh"));
+  }
 
   // A non-manifold mesh (three triangles on one edge) and a point cloud: exit 3, the file
   // named, nothing written.

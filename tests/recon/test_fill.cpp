@@ -132,6 +132,7 @@ TEST_CASE("fill_holes never lets a patch cross the mesh: such a loop stays open"
     const FillStats stats = fill_holes(m, opt);
     CHECK(stats.filled == 1);
     CHECK(stats.kept == 1);
+    CHECK(stats.crossing == 1);
     CHECK(analyze(m).boundary_loops == 1);
     CHECK(find_self_intersections(m).pairs == 0);
   }
@@ -148,6 +149,7 @@ TEST_CASE("fill_holes never lets a patch cross the mesh: such a loop stays open"
       const FillStats stats = fill_holes(copy, opt);
       CHECK(stats.filled == 0);
       CHECK(stats.kept == 3);
+      CHECK(stats.crossing == 3);
       CHECK(copy.triangles.size() == before);
       CHECK(copy.vertices.size() == m.vertices.size());
     }

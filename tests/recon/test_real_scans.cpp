@@ -298,6 +298,8 @@ TEST_CASE("real scan: on request the bunny's base holes and the casting's loops 
     CHECK(before.boundary_loops > 0);
     CHECK(closed.fill.filled + closed.fill.kept == before.boundary_loops);
     CHECK(after.boundary_loops == closed.fill.kept);
+    // every loop kept is within max_edges: kept because each of its patches would cross
+    CHECK(closed.fill.crossing == closed.fill.kept);
     if (bunny) {
       CHECK(closed.fill.filled == before.boundary_loops);
       CHECK(after.signed_volume > 0);  // closed and outward

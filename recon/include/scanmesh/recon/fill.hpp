@@ -30,6 +30,7 @@ struct FillOptions {
 struct FillStats {
   std::size_t filled = 0;     ///< loops closed
   std::size_t kept = 0;       ///< loops left open (larger than max_edges, or not fillable)
+  std::size_t crossing = 0;   ///< of those, loops whose every patch would cross the mesh
   std::size_t triangles = 0;  ///< triangles added
   std::size_t vertices = 0;   ///< vertices added (inside the patches, by the refinement)
   std::size_t faired = 0;     ///< patches faired (the others keep their refined, flat shape)
