@@ -90,8 +90,9 @@ bool coplanar_overlap(const std::array<Eigen::Vector2d, 3>& p, const std::array<
   return false;
 }
 
-/// Do triangles s and t (non-degenerate) intersect other than along what they share?
-bool pair_intersects(const Mesh& mesh, const Triangle& s, const Triangle& t) {
+}  // namespace
+
+bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t) {
   std::array<bool, 3> shared_p{}, shared_q{};
   int shared = 0;
   for (int i = 0; i < 3; ++i)
@@ -101,8 +102,8 @@ bool pair_intersects(const Mesh& mesh, const Triangle& s, const Triangle& t) {
         ++shared;
       }
   if (shared == 3) return true;  // the same triangle twice
-  const std::array<Vec3, 3> p{mesh.vertices[s[0]], mesh.vertices[s[1]], mesh.vertices[s[2]]};
-  const std::array<Vec3, 3> q{mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]};
+  const std::array<Vec3, 3> p{vertices[s[0]], vertices[s[1]], vertices[s[2]]};
+  const std::array<Vec3, 3> q{vertices[t[0]], vertices[t[1]], vertices[t[2]]};
   double longest = 0;
   for (int k = 0; k < 3; ++k) {
     longest = std::max(longest, (p[(k + 1) % 3] - p[k]).squaredNorm());
@@ -147,8 +148,6 @@ bool pair_intersects(const Mesh& mesh, const Triangle& s, const Triangle& t) {
   // A shared corner is in both intervals: only more than that point is an intersection.
   return shared == 1 ? overlap > eps : overlap >= 0;
 }
-
-}  // namespace
 
 SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_examples,
                                           std::size_t from) {
@@ -245,7 +244,7 @@ SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_exam
         if (std::max(range[a][0], range[b][0]) != cx || std::max(range[a][1], range[b][1]) != cy ||
             std::max(range[a][2], range[b][2]) != cz)
           continue;
-        if (pair_intersects(mesh, mesh.triangles[a], mesh.triangles[b])) record(a, b);
+        if (triangles_intersect(mesh.vertices, mesh.triangles[a], mesh.triangles[b])) record(a, b);
       }
     }
     g = e;
@@ -256,7 +255,7 @@ SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_exam
       if (b == a || (b < a && std::binary_search(big.begin(), big.end(), b))) continue;
       if (a < from && b < from) continue;
       if (!box[a].overlaps(box[b])) continue;
-      if (pair_intersects(mesh, mesh.triangles[a], mesh.triangles[b])) record(a, b);
+      if (triangles_intersect(mesh.vertices, mesh.triangles[a], mesh.triangles[b])) record(a, b);
     }
   }
   out.triangles = static_cast<std::size_t>(std::count(involved.begin(), involved.end(), 1));

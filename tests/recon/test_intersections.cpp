@@ -65,6 +65,8 @@ TEST_CASE("find_self_intersections: each kind of pair", "[recon][intersections]"
   }
   SECTION("crossing through the face") {
     const Mesh m = pair_of(base, {Vec3(0.2, 0.2, -1), Vec3(0.3, 0.2, 1), Vec3(0.2, 0.3, 1)});
+    CHECK(scanmesh::recon::triangles_intersect(m.vertices, m.triangles[0], m.triangles[1]));
+    CHECK(scanmesh::recon::triangles_intersect(m.vertices, m.triangles[1], m.triangles[0]));
     const auto r = find_self_intersections(m);
     CHECK(r.pairs == 1);
     CHECK(r.triangles == 2);
@@ -77,7 +79,9 @@ TEST_CASE("find_self_intersections: each kind of pair", "[recon][intersections]"
   }
   SECTION("sharing a vertex") {
     // only the vertex: a fan around it
-    CHECK(crossing_pairs(pair_of(base, {o, Vec3(-1, 0, 0.5), Vec3(0, -1, 0.5)})) == 0);
+    const Mesh fan = pair_of(base, {o, Vec3(-1, 0, 0.5), Vec3(0, -1, 0.5)});
+    CHECK(crossing_pairs(fan) == 0);
+    CHECK_FALSE(scanmesh::recon::triangles_intersect(fan.vertices, fan.triangles[0], fan.triangles[1]));
     // the other triangle goes on through the face
     CHECK(crossing_pairs(pair_of(base, {o, Vec3(0.5, 0.2, 1), Vec3(0.4, 0.4, -1)})) == 1);
     // in the same plane: a wedge beside it, and one overlapping it

@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "scanmesh/recon/mesh.hpp"
@@ -31,6 +32,10 @@ struct SelfIntersections {
 /// added to a mesh: hole-filling patches). max_examples = kAllPairs keeps every pair found.
 SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_examples = 16,
                                           std::size_t from = 0);
+
+/// The pair test itself: do triangles s and t (indices into `vertices`, neither degenerate)
+/// intersect other than along the vertices they share? Same tolerance as above.
+bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t);
 
 inline constexpr std::size_t kAllPairs = static_cast<std::size_t>(-1);
 
