@@ -185,14 +185,8 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["reduced_points"] = res.reduced_points;
     j["vertices"] = res.mesh.vertices.size();
     j["triangles"] = res.mesh.triangles.size();
-    j["boundary_loops"] = rep.boundary_loops;
-    j["boundary_loop_lengths"] = rep.boundary_loop_lengths;
-    j["components"] = rep.components;
+    put_topology(j, rep);
     j["outliers"] = res.outliers.size();
-    j["non_manifold_edges"] = rep.non_manifold_edges;
-    j["non_manifold_vertices"] = rep.non_manifold_vertices;
-    j["orientation_consistent"] = rep.orientation_consistent;
-    j["genus"] = rep.genus;
     j["cube"] = res.cube_mm;
     j["spacing"] = {{"nearest", res.spacing.nearest_mm},
                     {"cross", res.spacing.cross_mm},
@@ -205,11 +199,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["inserted_by_edge_split"] = res.refine.edge_splits;
     j["refine_flips"] = res.refine.flips;
     j["sliver_flips"] = res.refine.sliver_flips;
-    j["filled_holes"] = res.fill.filled;
-    j["fill_triangles"] = res.fill.triangles;
-    j["fill_vertices"] = res.fill.vertices;
-    j["faired_holes"] = res.fill.faired;
-    j["crossing_loops"] = res.fill.crossing;
+    put_fill(j, res.fill);
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["output"] = args.output;

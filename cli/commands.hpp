@@ -4,8 +4,11 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 
+#include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/mesh.hpp"
 
 namespace scanmesh::cli {
@@ -26,6 +29,26 @@ inline recon::Vec3 axis_of(const std::string& name) {
   if (name == "x") return recon::Vec3::UnitX();
   if (name == "y") return recon::Vec3::UnitY();
   return recon::Vec3::UnitZ();
+}
+
+/// The topology fields `reconstruct --json` and `fill --json` report about the mesh they wrote.
+inline void put_topology(nlohmann::json& j, const recon::MeshReport& r) {
+  j["boundary_loops"] = r.boundary_loops;
+  j["boundary_loop_lengths"] = r.boundary_loop_lengths;
+  j["components"] = r.components;
+  j["genus"] = r.genus;
+  j["non_manifold_edges"] = r.non_manifold_edges;
+  j["non_manifold_vertices"] = r.non_manifold_vertices;
+  j["orientation_consistent"] = r.orientation_consistent;
+}
+
+/// The hole-filling fields both commands report.
+inline void put_fill(nlohmann::json& j, const recon::FillStats& f) {
+  j["filled_holes"] = f.filled;
+  j["fill_triangles"] = f.triangles;
+  j["fill_vertices"] = f.vertices;
+  j["faired_holes"] = f.faired;
+  j["crossing_loops"] = f.crossing;
 }
 
 void add_reconstruct_command(CLI::App& app, Runner& run);
