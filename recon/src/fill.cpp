@@ -511,53 +511,51 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
   std::vector<Level> level(report.loops.size(), start);
   const std::size_t mesh_triangles = mesh.triangles.size(), mesh_vertices = mesh.vertices.size();
   std::vector<Vec3> border;
+  // Closes loop li at its level, appending the patch; false when the loop is kept open.
+  auto fill_loop = [&](std::size_t li) {
+    const std::vector<std::uint32_t>& q = report.loops[li].vertices;
+    if (!report.loops[li].closed || q.size() < 3 || q.size() > limit || level[li] == kOpen)
+      return false;
+    // The rim of a lone triangle: its patch would be the same triangle turned over. Any
+    // triangle on these three vertices has the boundary edge q0 -> q1, so one look-up tells.
+    if (q.size() == 3) {
+      const std::uint32_t t = triangle_on(q[0], q[1]);
+      if (t != kNone) {
+        const Triangle& tri = mesh.triangles[t];
+        if (tri[0] == q[2] || tri[1] == q[2] || tri[2] == q[2]) return false;
+      }
+    }
+    border.assign(q.size(), Vec3::Zero());
+    for (std::size_t i = 0; i < q.size(); ++i) {
+      const std::uint32_t t = triangle_on(q[i], q[(i + 1) % q.size()]);
+      if (t == kNone) return false;
+      const Triangle& tri = mesh.triangles[t];
+      const Vec3 normal = (mesh.vertices[tri[1]] - mesh.vertices[tri[0]])
+                              .cross(mesh.vertices[tri[2]] - mesh.vertices[tri[0]]);
+      if (normal.norm() > 0) border[i] = normal.normalized();
+    }
+    const std::size_t before = mesh.triangles.size();
+    if (!LoopFiller(mesh.vertices, q, border, edges).run(mesh.triangles)) return false;
+    if (level[li] != kPlain) {
+      PatchRefiner refiner(mesh, before, q, border, corners, edges);
+      if (refiner.run(level[li] == kFair) == PatchRefiner::Outcome::kFaired) ++stats.faired;
+      stats.vertices += refiner.added();
+    }
+    ++stats.filled;
+    stats.triangles += mesh.triangles.size() - before;
+    return true;
+  };
   // patch_of[t - mesh_triangles]: the loop whose patch triangle t is
   std::vector<std::uint32_t> patch_of;
   while (true) {
     stats = {};
     patch_of.clear();
     for (std::size_t li = 0; li < report.loops.size(); ++li) {
-      const std::vector<std::uint32_t>& q = report.loops[li].vertices;
-      if (!report.loops[li].closed || q.size() < 3 || q.size() > limit || level[li] == kOpen) {
-        ++stats.kept;
-        if (level[li] == kOpen) ++stats.crossing;
-        continue;
-      }
-      // The rim of a lone triangle: its patch would be the same triangle turned over. Any
-      // triangle on these three vertices has the boundary edge q0 -> q1, so one look-up tells.
-      const auto lone_rim = [&] {
-        const std::uint32_t t = triangle_on(q[0], q[1]);
-        if (t == kNone) return false;
-        const Triangle& tri = mesh.triangles[t];
-        return tri[0] == q[2] || tri[1] == q[2] || tri[2] == q[2];
-      };
-      if (q.size() == 3 && lone_rim()) {
-        ++stats.kept;
-        continue;
-      }
-      border.assign(q.size(), Vec3::Zero());
-      bool found = true;
-      for (std::size_t i = 0; i < q.size() && found; ++i) {
-        const std::uint32_t t = triangle_on(q[i], q[(i + 1) % q.size()]);
-        found = t != kNone;
-        if (!found) break;
-        const Triangle& tri = mesh.triangles[t];
-        const Vec3 normal = (mesh.vertices[tri[1]] - mesh.vertices[tri[0]])
-                                .cross(mesh.vertices[tri[2]] - mesh.vertices[tri[0]]);
-        if (normal.norm() > 0) border[i] = normal.normalized();
-      }
-      const std::size_t before = mesh.triangles.size();
-      if (found && LoopFiller(mesh.vertices, q, border, edges).run(mesh.triangles)) {
-        if (level[li] != kPlain) {
-          PatchRefiner refiner(mesh, before, q, border, corners, edges);
-          if (refiner.run(level[li] == kFair) == PatchRefiner::Outcome::kFaired) ++stats.faired;
-          stats.vertices += refiner.added();
-        }
-        ++stats.filled;
-        stats.triangles += mesh.triangles.size() - before;
+      if (fill_loop(li)) {
         patch_of.resize(mesh.triangles.size() - mesh_triangles, static_cast<std::uint32_t>(li));
       } else {
         ++stats.kept;
+        if (level[li] == kOpen) ++stats.crossing;
       }
     }
     // Guard: a patch must not cross the mesh, another patch or itself (a hole across a thin
