@@ -202,6 +202,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     put_fill(j, res.fill);
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
+    j["turning_points"] = res.turning_points;
     j["output"] = args.output;
     if (!args.preview.empty()) j["preview"] = args.preview;
     j["seconds_total"] = total;

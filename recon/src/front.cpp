@@ -9,6 +9,7 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/front.hpp"
 
+#include "scanmesh/recon/intersections.hpp"
 #include "triangle_shape.hpp"
 
 #include <algorithm>
@@ -227,6 +228,10 @@ class Builder {
       std::nth_element(sp.begin(), mid, sp.end());
       max_spacing_ = kMaxSparsity * static_cast<double>(*mid);
     }
+    if (opt_.crossing_guard) {
+      mark_turning_points();
+      corner_head_.assign(n, kNone);
+    }
   }
 
   FrontResult run();
@@ -275,6 +280,7 @@ class Builder {
   }
   void update_state(std::uint32_t v) {
     state_[v] = head_out_[v] == kNone ? VertexState::kDone : VertexState::kFront;
+    if (state_[v] == VertexState::kDone && !corner_head_.empty() && !turning_[v]) release_corners(v);
   }
   [[nodiscard]] Vec3 tri_normal(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
     return (p_[b] - p_[a]).cross(p_[c] - p_[a]);
@@ -379,6 +385,39 @@ class Builder {
                                   std::vector<std::uint8_t>& marked);
   void split_flat_triangle_holes();
 
+  // --- crossing guard (the new triangle must not cross or overlap the mesh) ---------------
+  // A new triangle is tested against the triangles around its own corners (their fans), and,
+  // where the surface turns back within reach (a thin wall, a sharp edge: `turning_`) or the
+  // front-edge tests could not see part of the front near it, against every triangle near it.
+  // The triangles around each vertex are linked lists in a recycled pool; a vertex whose fan has
+  // closed gives its list back unless it is a turning point (a closed fan cannot take new
+  // triangles, and away from turning points no new triangle reaches it except over the front).
+  void mark_turning_points();
+  void push_triangle(const Triangle& t);
+  void link_corner(std::uint32_t v, std::uint32_t tri);
+  void release_corners(std::uint32_t v);
+  void rebuild_corner_lists();
+  [[nodiscard]] bool keeps_list(std::uint32_t v) const {
+    return turning_[v] != 0 || state_[v] != VertexState::kDone;
+  }
+  [[nodiscard]] bool turning(const Triangle& t) const {
+    return (turning_[t[0]] | turning_[t[1]] | turning_[t[2]]) != 0;
+  }
+  /// Whether t crosses a triangle around one of its corners (other than across a shared edge).
+  bool crosses_fans(const Triangle& t);
+  [[nodiscard]] bool apart(const Triangle& q, const Triangle& t, const Vec3& o, const Vec3& n,
+                           double tol) const;
+  /// Whether t crosses any listed triangle with a corner within `radius` of its bounding sphere.
+  bool crosses_mesh(const Triangle& t, double radius);
+  std::vector<std::uint8_t> turning_;
+  std::vector<std::uint32_t> corner_head_;  // per vertex: first node of its list, or kNone
+  struct CornerNode {
+    std::uint32_t tri, next;
+  };
+  std::vector<CornerNode> corners_;
+  std::uint32_t free_corner_ = kNone;  // recycled nodes, linked through next
+  std::vector<std::uint32_t> near_tris_;
+
   static constexpr double kMaxSparsity = 2.5;
   /// Edges whose front angle at either end is below 120 degrees are processed first.
   const double ear_turn_ = turn_of_degrees(120);
@@ -466,7 +505,7 @@ bool Builder::try_seed(std::uint32_t s) {
         }
       }
       if (!ok) continue;
-      tris_.push_back({s, a, b});
+      push_triangle({s, a, b});
       const std::uint32_t e0 = new_edge(s, a, b), e1 = new_edge(a, b, s), e2 = new_edge(b, s, a);
       edges_[e0].next = e1;
       edges_[e1].next = e2;
@@ -617,6 +656,10 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
         return false;
     }
   }
+  if (opt_.crossing_guard) {
+    const Triangle t{b, a, p};
+    if (crosses_fans(t) || (turning(t) && crosses_mesh(t, radius))) return false;
+  }
   return true;
 }
 
@@ -702,7 +745,7 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
 void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
   const FrontEdge e = edges_[eid];  // copy: the pool may grow below
   const std::uint32_t a = e.a, b = e.b, ep = e.prev, en = e.next;
-  tris_.push_back({b, a, p});
+  push_triangle({b, a, p});
   const bool p_free = state_[p] == VertexState::kFree;  // a free point has no edges yet
   const bool close_a = !p_free && edges_map_.find(a, p) != nullptr;
   const bool close_b = !p_free && edges_map_.find(p, b) != nullptr;
@@ -866,6 +909,11 @@ void Builder::fill_small_loops() {
         if (ring.size() > 3 && edges_map_.find(fe.a, c) != nullptr) continue;
         if (min_angle_cos(fe.a, fe.b, c) > cos_fill_angle) continue;  // no slivers
         if (ring.size() > 3 && closes_empty_triangle(fe.a, c, fe.b)) continue;  // no tunnel
+        if (opt_.crossing_guard) {  // the ear must not cross the mesh either
+          const Triangle t{fe.b, fe.a, c};
+          if (crosses_fans(t) || (turning(t) && crosses_mesh(t, opt_.radius_factor * spacing(fe.a))))
+            continue;
+        }
         const double ang = front_turn_at_end(r);
         if (ang < best_angle) {
           best_angle = ang;
@@ -977,6 +1025,7 @@ std::size_t Builder::repair_fans(bool thorough) {
     }
   }
   if (!removed_tris.empty()) update_front_after_removal(removed_tris, marked);
+  if (total > 0 && !front_stale_) rebuild_corner_lists();  // else rebuild_front() does it
   return total;
 }
 
@@ -1136,7 +1185,10 @@ void Builder::split_flat_triangle_holes() {
       for (const auto& im : inner) edges_map_.insert(im.second, o, kInterior);
       split = true;
     }
-    if (split) ++res_.filled_gaps;
+    if (split) {
+      ++res_.filled_gaps;
+      rebuild_corner_lists();
+    }
   }
 }
 
@@ -1202,6 +1254,7 @@ void Builder::rebuild_front() {
     update_state(v);
   }
   for (std::uint32_t id = 0; id < edges_.size(); ++id) push(id);
+  rebuild_corner_lists();
 }
 
 void Builder::orient_components() {
@@ -1270,6 +1323,170 @@ void Builder::orient_components() {
     }
   for (Triangle& t : tris_)
     if (flip[comp(t)]) std::swap(t[1], t[2]);
+}
+
+void Builder::mark_turning_points() {
+  // A point is a turning point when a point within the candidate reach has a normal more than
+  // the normal rule's angle away from its own. Coarse first: per grid cell, the cone of its
+  // normals (mean, widest deviation); a point whose normal is within that angle of every
+  // neighbouring cell's cone has no such neighbour. The points the cones cannot clear get the
+  // exact ball test.
+  const std::size_t n = p_.size();
+  turning_.assign(n, 0);
+  if (n == 0) return;
+  const double theta = std::acos(cos_normal_);
+  const std::vector<std::uint32_t>& order = grid_.order();
+  const std::vector<Eigen::Vector3f>& nrm = f_.normal;
+  std::vector<std::uint32_t> cell_first;
+  std::vector<Eigen::Vector3f> mean;
+  std::vector<float> limit;  // a normal below this cosine with the mean may be too far away
+  grid_.for_each_cell([&](std::int64_t, std::int64_t, std::int64_t, std::uint32_t first,
+                          std::uint32_t last) {
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    for (std::uint32_t s = first; s < last; ++s) sum += nrm[order[s]];
+    const float len = sum.norm();
+    const Eigen::Vector3f m = len > 0 ? Eigen::Vector3f(sum / len) : Eigen::Vector3f(1, 0, 0);
+    float lowest = 1;
+    for (std::uint32_t s = first; s < last; ++s) lowest = std::min(lowest, m.dot(nrm[order[s]]));
+    const double spread = std::acos(std::clamp<double>(lowest, -1, 1));
+    cell_first.push_back(first);
+    mean.push_back(m);
+    limit.push_back(len > 0 && spread < theta ? static_cast<float>(std::cos(theta - spread)) : 2.0f);
+  });
+  const std::size_t cells = cell_first.size();
+  grid_.for_each_cell([&](std::int64_t cx, std::int64_t cy, std::int64_t cz, std::uint32_t first,
+                          std::uint32_t last) {
+    grid_.for_each_block_range(cx, cy, cz, 1, [&](std::uint32_t f, std::uint32_t l) {
+      auto d = static_cast<std::size_t>(std::lower_bound(cell_first.begin(), cell_first.end(), f) -
+                                        cell_first.begin());
+      for (; d < cells && cell_first[d] < l; ++d)
+        for (std::uint32_t s = first; s < last; ++s) {
+          const std::uint32_t v = order[s];
+          if (!turning_[v] && nrm[v].dot(mean[d]) < limit[d]) turning_[v] = 1;
+        }
+    });
+  });
+  const auto cos_limit = static_cast<float>(cos_normal_);
+  for (std::uint32_t v = 0; v < n; ++v) {
+    if (!turning_[v]) continue;
+    const double r = opt_.radius_factor * 1.5 * spacing(v);
+    const double r2 = r * r;
+    const Vec3& pv = p_[v];
+    const Eigen::Vector3f nv = nrm[v];
+    bool found = false;
+    grid_.for_each_range_within(pv, r, [&](std::uint32_t first, std::uint32_t last) {
+      for (std::uint32_t s = first; s < last && !found; ++s) {
+        const std::uint32_t u = order[s];
+        if (nrm[u].dot(nv) < cos_limit && (p_[u] - pv).squaredNorm() <= r2) found = true;
+      }
+    });
+    turning_[v] = found ? 1 : 0;
+  }
+  for (std::uint8_t t : turning_) res_.turning_points += t;
+}
+
+void Builder::link_corner(std::uint32_t v, std::uint32_t tri) {
+  std::uint32_t node = free_corner_;
+  if (node != kNone) {
+    free_corner_ = corners_[node].next;
+    corners_[node] = {tri, corner_head_[v]};
+  } else {
+    node = static_cast<std::uint32_t>(corners_.size());
+    corners_.push_back({tri, corner_head_[v]});
+  }
+  corner_head_[v] = node;
+}
+
+void Builder::release_corners(std::uint32_t v) {
+  std::uint32_t node = corner_head_[v];
+  if (node == kNone) return;
+  std::uint32_t last = node;
+  while (corners_[last].next != kNone) last = corners_[last].next;
+  corners_[last].next = free_corner_;
+  free_corner_ = node;
+  corner_head_[v] = kNone;
+}
+
+void Builder::push_triangle(const Triangle& t) {
+  const auto id = static_cast<std::uint32_t>(tris_.size());
+  tris_.push_back(t);
+  if (corner_head_.empty()) return;
+  for (std::uint32_t v : t) link_corner(v, id);  // new corners are never closed yet
+}
+
+void Builder::rebuild_corner_lists() {
+  if (corner_head_.empty()) return;
+  std::fill(corner_head_.begin(), corner_head_.end(), kNone);
+  corners_.clear();
+  free_corner_ = kNone;
+  for (std::uint32_t id = 0; id < tris_.size(); ++id)
+    for (std::uint32_t v : tris_[id])
+      if (keeps_list(v)) link_corner(v, id);
+}
+
+/// Whether triangle q lies strictly on one side of the plane through `o` with normal n (`tol`
+/// scales with the triangles), ignoring its corners shared with the other triangle (`t`): then
+/// the two meet at most at those shared corners. The cheap first step of the exact test.
+bool Builder::apart(const Triangle& q, const Triangle& t, const Vec3& o, const Vec3& n,
+                    double tol) const {
+  int above = 0, below = 0;
+  for (std::uint32_t w : q) {
+    if (w == t[0] || w == t[1] || w == t[2]) continue;
+    const double d = (p_[w] - o).dot(n);
+    if (d > tol) ++above;
+    else if (d < -tol) ++below;
+    else return false;
+  }
+  return above == 0 || below == 0;
+}
+
+bool Builder::crosses_fans(const Triangle& t) {
+  const Vec3& o = p_[t[0]];
+  const Vec3 n = (p_[t[1]] - o).cross(p_[t[2]] - o);
+  const double tol = 1e-6 * n.norm() * std::sqrt(n.norm());  // relative: n is an area
+  for (std::uint32_t v : t)
+    for (std::uint32_t c = corner_head_[v]; c != kNone; c = corners_[c].next) {
+      const Triangle& q = tris_[corners_[c].tri];
+      int shared = 0;
+      for (std::uint32_t w : q) shared += (w == t[0] || w == t[1] || w == t[2]) ? 1 : 0;
+      // Across a shared edge only a fold can overlap, and the dihedral rule refuses folds.
+      if (shared >= 2 || apart(q, t, o, n, tol)) continue;
+      const Vec3& oq = p_[q[0]];
+      const Vec3 nq = (p_[q[1]] - oq).cross(p_[q[2]] - oq);
+      if (apart(t, q, oq, nq, 1e-6 * nq.norm() * std::sqrt(nq.norm()))) continue;
+      if (triangles_intersect(p_, q, t)) return true;
+    }
+  return false;
+}
+
+bool Builder::crosses_mesh(const Triangle& t, double radius) {
+  const Vec3 &q0 = p_[t[0]], &q1 = p_[t[1]], &q2 = p_[t[2]];
+  const Vec3 centre = (q0 + q1 + q2) / 3.0;
+  const double reach = std::sqrt(std::max({(q0 - centre).squaredNorm(), (q1 - centre).squaredNorm(),
+                                           (q2 - centre).squaredNorm()}));
+  const Vec3 lo = q0.cwiseMin(q1).cwiseMin(q2), hi = q0.cwiseMax(q1).cwiseMax(q2);
+  near_tris_.clear();
+  const std::uint32_t* order = grid_.order().data();
+  // Every point of a triangle lies within 0.58 of its longest edge of its nearest corner, and
+  // edges are at most about `radius` long.
+  grid_.for_each_range_within(centre, reach + 0.6 * radius, [&](std::uint32_t first, std::uint32_t last) {
+    for (std::uint32_t s = first; s < last; ++s)
+      for (std::uint32_t c = corner_head_[order[s]]; c != kNone; c = corners_[c].next) {
+        const Triangle& q = tris_[corners_[c].tri];
+        const Vec3 &r0 = p_[q[0]], &r1 = p_[q[1]], &r2 = p_[q[2]];
+        if (((r0.cwiseMin(r1).cwiseMin(r2) - hi).array() > 0).any() ||
+            ((lo - r0.cwiseMax(r1).cwiseMax(r2)).array() > 0).any())
+          continue;
+        near_tris_.push_back(corners_[c].tri);
+      }
+  });
+  std::sort(near_tris_.begin(), near_tris_.end());
+  near_tris_.erase(std::unique(near_tris_.begin(), near_tris_.end()), near_tris_.end());
+  const Vec3 n = (q1 - q0).cross(q2 - q0);
+  const double tol = 1e-6 * n.norm() * std::sqrt(n.norm());
+  for (std::uint32_t id : near_tris_)
+    if (!apart(tris_[id], t, q0, n, tol) && triangles_intersect(p_, tris_[id], t)) return true;
+  return false;
 }
 
 FrontResult Builder::run() {

@@ -176,6 +176,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.edge_evaluations = fr.edge_evaluations;
   res.points_scanned = fr.points_scanned;
   res.seed_attempts = fr.seed_attempts;
+  res.turning_points = fr.turning_points;
   if (options.fill.max_edges > 0) {
     stage("fill");
     res.fill = fill_holes(res.mesh, options.fill);

@@ -2,6 +2,7 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/refine.hpp"
 
+#include "scanmesh/recon/intersections.hpp"
 #include "triangle_shape.hpp"
 
 #include <algorithm>
@@ -85,6 +86,20 @@ class Refiner {
   void flip_around(const std::vector<std::uint32_t>& inserted);
   void mend_slivers(const std::vector<std::uint32_t>& slivers);
   bool try_insert(std::uint32_t p);
+  /// Puts q into triangle t (barycentrics of q's projection): splits t, or the edge near q.
+  bool split_into(std::uint32_t q, std::uint32_t t, const double (&bary)[3]);
+  struct Host {
+    double h;
+    std::uint32_t t;
+    double bary[3];
+  };
+  static constexpr std::size_t kMaxHosts = 4;
+  /// Height (local spacings) within which a point counts as on a triangle's plane.
+  static constexpr double kOnPlane = 0.35;
+  std::vector<Host> hosts_;
+  /// Whether new triangle `nt` would cross a listed triangle of the mesh other than those
+  /// it replaces (`gone`, kNone-padded).
+  bool crosses(const Triangle& nt, std::initializer_list<std::uint32_t> gone);
   bool try_flip(std::uint32_t u, std::uint32_t v);
   void improve_around(std::uint32_t p);
 #ifndef NDEBUG
@@ -100,7 +115,7 @@ class Refiner {
   const double cos_dev_;
   std::vector<std::uint32_t> slot_;  // per vertex: its triangle list in lists_, or kNone
   std::vector<std::vector<std::uint32_t>> lists_;
-  std::vector<std::uint32_t> cand_;
+  std::vector<std::uint32_t> cand_, near_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> queue_;
   std::vector<std::uint8_t> touched_;  // per vertex: a flip changed its triangles
   bool mending_sliver_ = false;        // try_flip is mending slivers
@@ -304,10 +319,9 @@ bool Refiner::try_insert(std::uint32_t q) {
   });
   std::sort(cand_.begin(), cand_.end());
   cand_.erase(std::unique(cand_.begin(), cand_.end()), cand_.end());
-  // The nearest triangle whose plane the point lies close to, over its inside.
-  std::uint32_t best = kNone;
-  double best_h = hmax;
-  double bary[3] = {0, 0, 0};
+  // The triangles whose plane the point lies close to, over their inside, nearest first; the
+  // first into which it goes without a new triangle crossing the mesh takes it.
+  hosts_.clear();
   for (std::uint32_t t : cand_) {
     const Triangle& tr = tris_[t];
     const Vec3 &a = p_[tr[0]], &b = p_[tr[1]], &c = p_[tr[2]];
@@ -315,22 +329,33 @@ bool Refiner::try_insert(std::uint32_t q) {
     const double area2 = nn.norm();
     if (area2 == 0) continue;
     const Vec3 nt = nn / area2;
-    if (nt.dot(nq) < cos_dev_) continue;
     const double h = (P - a).dot(nt);
-    if (std::abs(h) > best_h) continue;
+    if (std::abs(h) > hmax) continue;
+    // The normal rule keeps the other side of a thin wall out; a point (nearly) on the
+    // triangle's plane is on this side whatever its normal says (feature points, whose PCA
+    // normal blends the faces meeting there): the crossing test guards what it changes.
+    if (nt.dot(nq) < cos_dev_ && std::abs(h) > kOnPlane * sp) continue;
     const Vec3 x = P - h * nt;
     const double la = (c - b).cross(x - b).dot(nt) / area2;
     const double lb = (a - c).cross(x - c).dot(nt) / area2;
     const double lc = 1 - la - lb;
     if (std::min({la, lb, lc}) < -0.02) continue;
-    if (std::abs(h) == best_h && best != kNone && t > best) continue;
-    best = t;
-    best_h = std::abs(h);
-    bary[0] = la;
-    bary[1] = lb;
-    bary[2] = lc;
+    hosts_.push_back({std::abs(h), t, {la, lb, lc}});
   }
-  if (best == kNone) return false;
+  std::sort(hosts_.begin(), hosts_.end(), [](const Host& l, const Host& r) {
+    return l.h != r.h ? l.h < r.h : l.t < r.t;
+  });
+  if (hosts_.size() > kMaxHosts) hosts_.resize(kMaxHosts);
+  for (const Host& host : hosts_)
+    if (split_into(q, host.t, host.bary)) {
+      // Lawson-style: the edges opposite the new vertex.
+      improve_around(q);
+      return true;
+    }
+  return false;
+}
+
+bool Refiner::split_into(std::uint32_t q, std::uint32_t best, const double (&bary)[3]) {
   const Triangle t0 = tris_[best];
   for (std::uint32_t v : t0)
     if (!complete(v)) return false;
@@ -354,6 +379,8 @@ bool Refiner::try_insert(std::uint32_t q) {
       const Vec3 n1 = unit_normal(tb);
       const Triangle a1{u, q, x}, a2{q, v, x}, b1{v, q, y}, b2{q, u, y};
       if (!fits(a1, n0) || !fits(a2, n0) || !fits(b1, n1) || !fits(b2, n1)) return false;
+      for (const Triangle& nt : {a1, a2, b1, b2})
+        if (crosses(nt, {best, t1})) return false;
       replace(best, a1);
       append(a2);
       replace(t1, b1);
@@ -361,6 +388,8 @@ bool Refiner::try_insert(std::uint32_t q) {
     } else {
       const Triangle a1{u, q, x}, a2{q, v, x};
       if (!fits(a1, n0) || !fits(a2, n0)) return false;
+      for (const Triangle& nt : {a1, a2})
+        if (crosses(nt, {best})) return false;
       replace(best, a1);
       append(a2);
     }
@@ -368,13 +397,46 @@ bool Refiner::try_insert(std::uint32_t q) {
   } else {
     const Triangle a1{t0[0], t0[1], q}, a2{t0[1], t0[2], q}, a3{t0[2], t0[0], q};
     if (!fits(a1, n0) || !fits(a2, n0) || !fits(a3, n0)) return false;
+    for (const Triangle& nt : {a1, a2, a3})
+      if (crosses(nt, {best})) return false;
     replace(best, a1);
     append(a2);
     append(a3);
   }
-  // Lawson-style: the edges opposite the new vertex.
-  improve_around(q);
   return true;
+}
+
+bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> gone) {
+  // Every listed triangle near nt: those of the complete vertices within reach of its corners
+  // (a crossing triangle has a corner within its longest edge of nt's bounding sphere).
+  const Vec3 &a = p_[nt[0]], &b = p_[nt[1]], &c = p_[nt[2]];
+  const Vec3 centre = (a + b + c) / 3.0;
+  const double reach = std::sqrt(std::max({(a - centre).squaredNorm(), (b - centre).squaredNorm(),
+                                           (c - centre).squaredNorm()}));
+  const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+  const double r = reach + 2.0 * f_.spacing[nt[0]] * (o_.search_factor);
+  near_.clear();
+  grid_.for_each_range_within(centre, r, [&](std::uint32_t first, std::uint32_t last) {
+    for (std::uint32_t s = first; s < last; ++s) {
+      const std::uint32_t j = grid_.order()[s];
+      if (!complete(j)) continue;
+      for (std::uint32_t t : around(j)) {
+        const Triangle& q = tris_[t];
+        const Vec3 &r0 = p_[q[0]], &r1 = p_[q[1]], &r2 = p_[q[2]];
+        if (((r0.cwiseMin(r1).cwiseMin(r2) - hi).array() > 0).any() ||
+            ((lo - r0.cwiseMax(r1).cwiseMax(r2)).array() > 0).any())
+          continue;
+        near_.push_back(t);
+      }
+    }
+  });
+  std::sort(near_.begin(), near_.end());
+  near_.erase(std::unique(near_.begin(), near_.end()), near_.end());
+  for (std::uint32_t t : near_) {
+    if (std::find(gone.begin(), gone.end(), t) != gone.end()) continue;
+    if (triangles_intersect(p_, tris_[t], nt)) return true;
+  }
+  return false;
 }
 
 void Refiner::improve_around(std::uint32_t q) {
@@ -460,7 +522,7 @@ bool Refiner::try_flip(std::uint32_t u, std::uint32_t v) {
     if (!flip && mending_sliver_)
       flip = new_min > 2 * old_min && e_new < 1.1 * e_old;
   }
-  if (!flip) return false;
+  if (!flip || crosses(C, {t1, t2}) || crosses(D, {t1, t2})) return false;
   for (std::uint32_t w : {u, v, x, y}) touched_[w] = 1;
   replace(t1, C);
   replace(t2, D);

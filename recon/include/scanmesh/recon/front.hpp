@@ -43,6 +43,11 @@ struct FrontOptions {
   /// Boundary loops with at most this many edges and a perimeter of at most
   /// `fill_perimeter_factor` local spacings are sampling gaps, closed at the end.
   std::size_t fill_max_edges = 8;
+  /// The new triangle must not cross or overlap the mesh (rule 3 of the front): each one is
+  /// tested exactly against the triangles around its corners, and near turning points (the
+  /// surface turns back within reach: thin walls, sharp edges) or where the front-edge tests
+  /// cannot see the front near it, against every triangle near it. Off only for comparison.
+  bool crossing_guard = true;
   double fill_perimeter_factor = 10.0;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
@@ -59,6 +64,7 @@ struct FrontResult {
   std::size_t edge_evaluations = 0;  ///< front edges examined (cost counter)
   std::size_t points_scanned = 0;    ///< grid points visited while gathering candidates
   std::size_t seed_attempts = 0;
+  std::size_t turning_points = 0;  ///< points near which the surface turns back (crossing guard)
 };
 
 /// Triangulates `points` (with `frames` from estimate_frames and `grid` indexing the points

@@ -49,6 +49,7 @@ struct ReconstructResult {
   RefineStats refine;  ///< points the front left out that were inserted afterwards
   FillStats fill;      ///< holes closed on request (options.fill)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
+  std::size_t turning_points = 0;  ///< points the crossing guard tests against everything near
 };
 
 /// Called with the name of each stage when it starts ("reduce", "normals", "front", "refine",
