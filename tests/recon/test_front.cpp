@@ -6,6 +6,7 @@
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "support/shapes.hpp"
 
@@ -132,6 +133,51 @@ TEST_CASE("cube with sharp edges closes", "[recon]") {
   CHECK(rep.components == 1);
   CHECK(rep.genus == 0);
   CHECK(rep.signed_volume == Approx(1000.0).epsilon(0.01));
+}
+
+// The crossing guard tests new triangles against everything near them only around turning
+// points (a point within reach whose normal is more than 60 degrees away): none on a smooth
+// sphere, a band along a cube's edges, every point of a plate whose two faces are 1.6 spacings
+// apart. No output crosses itself.
+TEST_CASE("turning points: none on a sphere, a cube's edges, all of a thin plate", "[recon]") {
+  const auto sphere = reconstruct(test::sphere_points(20000, 10.0));
+  CHECK(sphere.turning_points == 0);
+  CHECK(scanmesh::recon::find_self_intersections(sphere.mesh).pairs == 0);
+
+  const auto cube = reconstruct(test::cube_points(10.0, 0.25));
+  INFO("cube: " << cube.turning_points << " turning of " << cube.reduced_points);
+  CHECK(cube.turning_points > 0);
+  CHECK(cube.turning_points < cube.reduced_points / 2);
+  CHECK(scanmesh::recon::find_self_intersections(cube.mesh).pairs == 0);
+
+  // A 10 x 10 plate 0.4 thick sampled every 0.25 on all six faces.
+  std::vector<Vec3> plate;
+  const double h = 0.25, t = 0.4;
+  for (int i = 0; i <= 40; ++i)
+    for (int j = 0; j <= 40; ++j) {
+      plate.emplace_back(i * h, j * h, 0.0);
+      plate.emplace_back(i * h, j * h, t);
+    }
+  for (int i = 0; i <= 40; ++i)
+    for (double z : {t / 3, 2 * t / 3}) {
+      plate.emplace_back(i * h, 0.0, z);
+      plate.emplace_back(i * h, 10.0, z);
+      if (i > 0 && i < 40) {
+        plate.emplace_back(0.0, i * h, z);
+        plate.emplace_back(10.0, i * h, z);
+      }
+    }
+  ReconstructOptions opt;
+  opt.cube_mode = ReconstructOptions::CubeMode::kNone;  // every point
+  const auto r = reconstruct(plate, opt);
+  const auto rep = analyze(r.mesh);
+  INFO("plate: " << r.turning_points << " turning of " << r.reduced_points << ", genus " << rep.genus
+                 << ", loops " << rep.boundary_loops);
+  CHECK(r.turning_points == r.reduced_points);
+  CHECK(rep.non_manifold_edges == 0);
+  CHECK(rep.non_manifold_vertices == 0);
+  CHECK(rep.orientation_consistent);
+  CHECK(scanmesh::recon::find_self_intersections(r.mesh).pairs == 0);
 }
 
 TEST_CASE("two separate objects give two closed components", "[recon]") {
