@@ -407,14 +407,14 @@ bool Refiner::split_into(std::uint32_t q, std::uint32_t best, const double (&bar
 }
 
 bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> gone) {
-  // Every listed triangle near nt: those of the complete vertices within reach of its corners
-  // (a crossing triangle has a corner within its longest edge of nt's bounding sphere).
+  // Every listed triangle near nt: a triangle crossing it has a corner within 0.58 of its own
+  // longest edge (at most about 4 local spacings) of nt's bounding sphere.
   const Vec3 &a = p_[nt[0]], &b = p_[nt[1]], &c = p_[nt[2]];
   const Vec3 centre = (a + b + c) / 3.0;
   const double reach = std::sqrt(std::max({(a - centre).squaredNorm(), (b - centre).squaredNorm(),
                                            (c - centre).squaredNorm()}));
   const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
-  const double r = reach + 2.0 * f_.spacing[nt[0]] * (o_.search_factor);
+  const double r = reach + 2.5 * f_.spacing[nt[0]];
   near_.clear();
   grid_.for_each_range_within(centre, r, [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s) {
