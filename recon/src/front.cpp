@@ -1475,23 +1475,16 @@ bool Builder::crosses_fans(const Triangle& t) {
 
 bool Builder::crosses_mesh(const Triangle& t, double radius) {
   const Vec3 &q0 = p_[t[0]], &q1 = p_[t[1]], &q2 = p_[t[2]];
-  const Vec3 centre = (q0 + q1 + q2) / 3.0;
-  const double reach = std::sqrt(std::max({(q0 - centre).squaredNorm(), (q1 - centre).squaredNorm(),
-                                           (q2 - centre).squaredNorm()}));
-  const Vec3 lo = q0.cwiseMin(q1).cwiseMin(q2), hi = q0.cwiseMax(q1).cwiseMax(q2);
+  const detail::TriangleBounds tb(q0, q1, q2);
   near_tris_.clear();
   const std::uint32_t* order = grid_.order().data();
   // Every point of a triangle lies within 0.58 of its longest edge of its nearest corner, and
   // edges are at most about `radius` long.
-  grid_.for_each_range_within(centre, reach + 0.6 * radius, [&](std::uint32_t first, std::uint32_t last) {
+  grid_.for_each_range_within(tb.centre, tb.reach + 0.6 * radius, [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s)
       for (std::uint32_t c = corner_head_[order[s]]; c != kNone; c = corners_[c].next) {
         const Triangle& q = tris_[corners_[c].tri];
-        const Vec3 &r0 = p_[q[0]], &r1 = p_[q[1]], &r2 = p_[q[2]];
-        if (((r0.cwiseMin(r1).cwiseMin(r2) - hi).array() > 0).any() ||
-            ((lo - r0.cwiseMax(r1).cwiseMax(r2)).array() > 0).any())
-          continue;
-        near_tris_.push_back(corners_[c].tri);
+        if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(corners_[c].tri);
       }
   });
   std::sort(near_tris_.begin(), near_tris_.end());

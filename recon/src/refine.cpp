@@ -98,7 +98,7 @@ class Refiner {
   static constexpr double kOnPlane = 0.35;
   std::vector<Host> hosts_;
   /// Whether new triangle `nt` would cross a listed triangle of the mesh other than those
-  /// it replaces (`gone`, kNone-padded).
+  /// it replaces (`gone`).
   bool crosses(const Triangle& nt, std::initializer_list<std::uint32_t> gone);
   bool try_flip(std::uint32_t u, std::uint32_t v);
   void improve_around(std::uint32_t p);
@@ -409,24 +409,16 @@ bool Refiner::split_into(std::uint32_t q, std::uint32_t best, const double (&bar
 bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> gone) {
   // Every listed triangle near nt: a triangle crossing it has a corner within 0.58 of its own
   // longest edge (at most about 4 local spacings) of nt's bounding sphere.
-  const Vec3 &a = p_[nt[0]], &b = p_[nt[1]], &c = p_[nt[2]];
-  const Vec3 centre = (a + b + c) / 3.0;
-  const double reach = std::sqrt(std::max({(a - centre).squaredNorm(), (b - centre).squaredNorm(),
-                                           (c - centre).squaredNorm()}));
-  const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
-  const double r = reach + 2.5 * f_.spacing[nt[0]];
+  const detail::TriangleBounds nb(p_[nt[0]], p_[nt[1]], p_[nt[2]]);
   near_.clear();
-  grid_.for_each_range_within(centre, r, [&](std::uint32_t first, std::uint32_t last) {
+  grid_.for_each_range_within(nb.centre, nb.reach + 2.5 * f_.spacing[nt[0]],
+                              [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s) {
       const std::uint32_t j = grid_.order()[s];
       if (!complete(j)) continue;
       for (std::uint32_t t : around(j)) {
         const Triangle& q = tris_[t];
-        const Vec3 &r0 = p_[q[0]], &r1 = p_[q[1]], &r2 = p_[q[2]];
-        if (((r0.cwiseMin(r1).cwiseMin(r2) - hi).array() > 0).any() ||
-            ((lo - r0.cwiseMax(r1).cwiseMax(r2)).array() > 0).any())
-          continue;
-        near_.push_back(t);
+        if (!nb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_.push_back(t);
       }
     }
   });

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 
 #include "scanmesh/recon/mesh.hpp"
 
@@ -20,5 +21,21 @@ inline double min_angle_cos(const Vec3& a, const Vec3& b, const Vec3& c) {
   }
   return worst;
 }
+
+/// Bounding sphere (centroid, distance to the farthest corner) and box of a triangle: the broad
+/// phase of the crossing tests in the front and the insertion pass.
+struct TriangleBounds {
+  Vec3 centre, lo, hi;
+  double reach;
+  TriangleBounds(const Vec3& a, const Vec3& b, const Vec3& c)
+      : centre((a + b + c) / 3.0), lo(a.cwiseMin(b).cwiseMin(c)), hi(a.cwiseMax(b).cwiseMax(c)),
+        reach(std::sqrt(std::max({(a - centre).squaredNorm(), (b - centre).squaredNorm(),
+                                  (c - centre).squaredNorm()}))) {}
+  /// Whether the box of triangle (a, b, c) misses this one's (then the two cannot meet).
+  [[nodiscard]] bool box_misses(const Vec3& a, const Vec3& b, const Vec3& c) const {
+    return ((a.cwiseMin(b).cwiseMin(c) - hi).array() > 0).any() ||
+           ((lo - a.cwiseMax(b).cwiseMax(c)).array() > 0).any();
+  }
+};
 
 }  // namespace scanmesh::recon::detail
