@@ -404,6 +404,12 @@ class Builder {
     return (turning_[t[0]] | turning_[t[1]] | turning_[t[2]]) != 0;
   }
   /// Whether t crosses a triangle around one of its corners (other than across a shared edge).
+  /// The guard itself: near a turning point crosses_mesh (which covers the fans), elsewhere
+  /// crosses_fans unless `flat` (the corners' normals within 5 degrees of the triangle's).
+  bool crosses(const Triangle& t, double radius, bool flat) {
+    if (turning(t)) return crosses_mesh(t, radius);
+    return !flat && crosses_fans(t);
+  }
   bool crosses_fans(const Triangle& t);
   [[nodiscard]] bool apart(const Triangle& q, const Triangle& t, const Vec3& o, const Vec3& n,
                            double tol) const;
@@ -664,15 +670,11 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
     // surface is then flat at its scale and the sector tests above, made in projection on those
     // normals, are exact (measured: no fan crossing on any real scan below 5 degrees; 35-68 %
     // of the tests skipped).
-    const Triangle t{b, a, p};
     const Eigen::Vector3f n1f = n1.cast<float>();
-    if (turning(t)) {
-      if (crosses_mesh(t, radius)) return false;
-    } else if (!(std::abs(f_.normal[a].dot(n1f)) >= kCosFlat && std::abs(f_.normal[b].dot(n1f)) >= kCosFlat &&
-                 std::abs(f_.normal[p].dot(n1f)) >= kCosFlat) &&
-               crosses_fans(t)) {
-      return false;
-    }
+    const bool flat = std::abs(f_.normal[a].dot(n1f)) >= kCosFlat &&
+                      std::abs(f_.normal[b].dot(n1f)) >= kCosFlat &&
+                      std::abs(f_.normal[p].dot(n1f)) >= kCosFlat;
+    if (crosses({b, a, p}, radius, flat)) return false;
   }
   return true;
 }
@@ -924,9 +926,7 @@ void Builder::fill_small_loops() {
         if (min_angle_cos(fe.a, fe.b, c) > cos_fill_angle) continue;  // no slivers
         if (ring.size() > 3 && closes_empty_triangle(fe.a, c, fe.b)) continue;  // no tunnel
         if (opt_.crossing_guard) {  // the ear must not cross the mesh either
-          const Triangle t{fe.b, fe.a, c};
-          if (crosses_fans(t) || (turning(t) && crosses_mesh(t, opt_.radius_factor * spacing(fe.a))))
-            continue;
+          if (crosses({fe.b, fe.a, c}, opt_.radius_factor * spacing(fe.a), false)) continue;
         }
         const double ang = front_turn_at_end(r);
         if (ang < best_angle) {
@@ -1149,6 +1149,7 @@ void Builder::split_flat_triangle_holes() {
   // that spans other corners of the hole is split at them (a fan from its third vertex), so the
   // two sides of the slit meet edge to edge.
   if (front_stale_) rebuild_front();
+  const std::size_t gaps_before = res_.filled_gaps;
   const double cos_flat = std::cos(0.05 * kPi / 180);
   std::vector<std::uint32_t> loop;
   std::vector<std::pair<double, std::uint32_t>> inner;
@@ -1199,11 +1200,10 @@ void Builder::split_flat_triangle_holes() {
       for (const auto& im : inner) edges_map_.insert(im.second, o, kInterior);
       split = true;
     }
-    if (split) {
-      ++res_.filled_gaps;
-      rebuild_corner_lists();
-    }
+    if (split) ++res_.filled_gaps;
   }
+  // Triangles were rewritten in place: once for all the splits.
+  if (res_.filled_gaps != gaps_before) rebuild_corner_lists();
 }
 
 void Builder::rebuild_front() {
