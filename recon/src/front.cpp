@@ -720,12 +720,16 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   // The scan: every point in the cells around the edge. Most are rejected by the first test
   // (beyond the largest radius any candidate may use), so it is written on plain coordinates
   // and reads nothing else before it.
+  // Only cells within sqrt(gather^2 - lab^2 / 4) of the edge's midpoint: a point within
+  // `gather` of both a and b is that close to the midpoint (parallelogram law), and so is every
+  // point of a new triangle. (gather + lab / 2 before: 20 % more points scanned, same output.)
   const double gather2 = gather * gather;
+  const double scan_radius = std::sqrt(std::max(gather2 - 0.25 * lab * lab, 0.0));
   const double ax = pa.x(), ay = pa.y(), az = pa.z(), bx = pb.x(), by = pb.y(), bz = pb.z();
   const std::uint32_t* order = grid_.order().data();
   const VertexState* state = state_.data();
   const Vec3* pts = p_.data();
-  grid_.for_each_range_within(mid, gather + 0.5 * lab, [&](std::uint32_t first, std::uint32_t last) {
+  grid_.for_each_range_within(mid, scan_radius, [&](std::uint32_t first, std::uint32_t last) {
     res_.points_scanned += last - first;
     for (std::uint32_t slot = first; slot < last; ++slot) {
       const std::uint32_t j = order[slot];
