@@ -62,4 +62,19 @@ inline void add_noise(std::vector<Vec3>& pts, double sigma, std::uint32_t seed) 
   for (auto& p : pts) p += Vec3(nd(rng), nd(rng), nd(rng));
 }
 
+/// A ruled surface z = f(y) scanned along straight lines in x (the y of each line and the step
+/// along it vary): the points of one line are exactly collinear, as on the scan lines of a raw
+/// range scan (bun000) or of a profiler moved in a straight line.
+inline std::vector<Vec3> ruled_scan_lines(double width, double depth, std::uint32_t seed) {
+  std::mt19937 gen(seed);
+  auto unit = [&gen] { return static_cast<double>(gen() >> 8) * 0x1.0p-24; };  // [0, 1)
+  std::vector<Vec3> pts;
+  for (double y = 0; y < depth; y += 0.01 + 0.01 * unit()) {
+    const double z = 0.4 * std::sin(2.1 * y) + 0.1 * std::sin(5 * y + seed);
+    const double step = 0.01 + 0.004 * unit();
+    for (double x = 0.01 * unit(); x < width; x += step * (0.7 + 0.6 * unit())) pts.emplace_back(x, y, z);
+  }
+  return pts;
+}
+
 }  // namespace scanmesh::test
