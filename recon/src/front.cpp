@@ -205,24 +205,27 @@ double orient(const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& n) {
 }
 
 /// Whether segments p1-p2 and q1-q2 (no common end point) cross or touch, seen in the plane
-/// with normal n. Touching counts: an end point on the other segment, or collinear segments that
-/// overlap. Raw range scans have points exactly on one line (a scan line), and a triangle whose
-/// edge runs through a front vertex, or whose apex sits on a front edge, overlaps the triangles
-/// there as soon as the surface is not exactly flat (bun000: 3 such pairs with strict signs).
-/// Orientations within 1e-9 of the squared longer segment count as zero (rounding).
-bool segments_meet(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2, const Vec3& n) {
-  const double lp2 = (p2 - p1).squaredNorm();
-  const double tol = 1e-9 * std::max(lp2, (q2 - q1).squaredNorm());
-  auto sign = [tol](double d) { return d > tol ? 1 : (d < -tol ? -1 : 0); };
-  const int s1 = sign(orient(q1, q2, p1, n)), s2 = sign(orient(q1, q2, p2, n));
+/// with normal n. Touching counts: an end point within `clear` of the other segment, or
+/// collinear segments that overlap. Raw range scans have points exactly on one line (a scan
+/// line), and a triangle whose edge runs through a front vertex, or whose apex sits on a front
+/// edge, overlaps the triangles there as soon as the surface is not exactly flat (bun000: 3 such
+/// pairs with strict signs). `clear` is a distance: a few float roundings of the coordinates, so
+/// that a configuration that only just misses does not touch once written as float (STL, PLY).
+bool segments_meet(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2, const Vec3& n,
+                   double clear) {
+  const double lp = (p2 - p1).norm(), lq = (q2 - q1).norm();
+  auto sign = [](double d, double tol) { return d > tol ? 1 : (d < -tol ? -1 : 0); };
+  const double tq = clear * lq;  // orient(q1, q2, x) = lq * signed distance of x from that line
+  const int s1 = sign(orient(q1, q2, p1, n), tq), s2 = sign(orient(q1, q2, p2, n), tq);
   if (s1 * s2 > 0) return false;
-  const int s3 = sign(orient(p1, p2, q1, n)), s4 = sign(orient(p1, p2, q2, n));
+  const double tp = clear * lp;
+  const int s3 = sign(orient(p1, p2, q1, n), tp), s4 = sign(orient(p1, p2, q2, n), tp);
   if (s3 * s4 > 0) return false;
   if (s1 != 0 || s2 != 0 || s3 != 0 || s4 != 0) return true;
   // collinear: do the intervals along p1-p2 overlap?
   const Vec3 u = p2 - p1;
   const double t1 = (q1 - p1).dot(u), t2 = (q2 - p1).dot(u);
-  return std::max(t1, t2) > tol && std::min(t1, t2) < lp2 - tol;
+  return std::max(t1, t2) > tp && std::min(t1, t2) < lp * lp - tp;
 }
 
 class Builder {
@@ -236,6 +239,11 @@ class Builder {
     valence_.assign(n, 0);
     tris_.reserve(n * 2 + 16);
     cos_normal_ = std::cos(opt.max_normal_deviation_deg * kPi / 180);
+    // Clearance of the front-edge tests: 8 float roundings (2^-24 relative) of the largest
+    // coordinate, so that no vertex that just misses an edge lands on it in a float file.
+    double extent = 0;
+    for (const Vec3& q : pts) extent = std::max(extent, q.cwiseAbs().maxCoeff());
+    clear_ = 8.0 * 0x1.0p-24 * extent;
     if (n > 0) {
       std::vector<float> sp = frames.spacing;
       auto mid = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2);
@@ -470,6 +478,7 @@ class Builder {
   std::vector<Candidate> cand_;
   std::vector<std::uint32_t> near_front_;
   double cos_normal_ = 1.0;  // cosine of max_normal_deviation_deg
+  double clear_ = 0;         // distance under which the front-edge tests count touching
   FrontResult res_;
 };
 
@@ -653,15 +662,15 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   const Vec3 centre = (pa + pb + pp) / 3.0;
   const double reach = std::sqrt(std::max({(pa - centre).squaredNorm(), (pb - centre).squaredNorm(),
                                            (pp - centre).squaredNorm()}));
-  // Orientations this small count as zero (rounding), as in segments_meet.
-  const double on_edge = 1e-9 * std::max((pp - pa).squaredNorm(), (pb - pp).squaredNorm());
+  // Within clear_ of a new edge counts as on it, as in segments_meet.
+  const double on_ap = clear_ * (pp - pa).norm(), on_pb = clear_ * (pb - pp).norm();
   for (std::uint32_t v : near_front_) {
     if (state_[v] != VertexState::kFront) continue;
     const double hv = std::abs((p_[v] - pa).dot(n1));
     const double dv = (p_[v] - centre).norm();  // inside in projection: within reach + band
     // Inside, or on one of its new edges (a vertex there would be a T-junction).
     if (v != a && v != b && v != p && hv < band && dv < reach + band && orient(pb, pa, p_[v], n1) > 0 &&
-        orient(pa, pp, p_[v], n1) >= -on_edge && orient(pp, pb, p_[v], n1) >= -on_edge)
+        orient(pa, pp, p_[v], n1) >= -on_ap && orient(pp, pb, p_[v], n1) >= -on_pb)
       return false;
     for (std::uint32_t fe = head_out_[v]; fe != kNone; fe = edges_[fe].next_out) {
       const FrontEdge& g = edges_[fe];
@@ -674,10 +683,10 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
       // The other side of a thin wall faces away: its front cannot collide with this one.
       if (tri_normal(g.a, g.b, g.opp).dot(n1) < 0) continue;
       if (!close_a && g.a != a && g.b != a && g.a != p && g.b != p &&
-          segments_meet(pa, pp, p_[g.a], p_[g.b], n1))
+          segments_meet(pa, pp, p_[g.a], p_[g.b], n1, clear_))
         return false;
       if (!close_b && g.a != b && g.b != b && g.a != p && g.b != p &&
-          segments_meet(pp, pb, p_[g.a], p_[g.b], n1))
+          segments_meet(pp, pb, p_[g.a], p_[g.b], n1, clear_))
         return false;
     }
   }
