@@ -239,16 +239,18 @@ class Builder {
     valence_.assign(n, 0);
     tris_.reserve(n * 2 + 16);
     cos_normal_ = std::cos(opt.max_normal_deviation_deg * kPi / 180);
-    // Clearance of the front-edge tests: 8 float roundings (2^-24 relative) of the largest
-    // coordinate, so that no vertex that just misses an edge lands on it in a float file.
-    double extent = 0;
-    for (const Vec3& q : pts) extent = std::max(extent, q.cwiseAbs().maxCoeff());
-    clear_ = 8.0 * 0x1.0p-24 * extent;
     if (n > 0) {
       std::vector<float> sp = frames.spacing;
       auto mid = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2);
       std::nth_element(sp.begin(), mid, sp.end());
       max_spacing_ = kMaxSparsity * static_cast<double>(*mid);
+      // Clearance of the front-edge tests: 8 float roundings (2^-24 relative) of the largest
+      // coordinate, so that no vertex that just misses an edge lands on it in a float file; at
+      // most 1e-3 of the median spacing (a cloud far from the origin, which a float file cannot
+      // hold to its spacing anyway, must not lose triangles to it).
+      double extent = 0;
+      for (const Vec3& q : pts) extent = std::max(extent, q.cwiseAbs().maxCoeff());
+      clear_ = std::min(8.0 * 0x1.0p-24 * extent, 1e-3 * static_cast<double>(*mid));
     }
     if (opt_.crossing_guard) {
       mark_turning_points();

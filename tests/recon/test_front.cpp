@@ -197,6 +197,17 @@ TEST_CASE("turning points: none on a sphere, a cube's edges, all of a thin plate
   CHECK(scanmesh::recon::find_self_intersections(r.mesh).pairs == 0);
 }
 
+// The touching clearance grows with the coordinates (float roundings of the largest one) but is
+// capped by the spacing: a part far from the origin (machine coordinates) meshes as at home.
+TEST_CASE("a sphere far from the origin closes as it does at the origin", "[recon]") {
+  const auto r = reconstruct(test::sphere_points(20000, 10.0, Vec3(1e6, -1e6, 2e6)));
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.boundary_loops == 0);
+  CHECK(rep.components == 1);
+  CHECK(rep.genus == 0);
+}
+
 TEST_CASE("two separate objects give two closed components", "[recon]") {
   auto pts = test::sphere_points(5000, 5.0, Vec3(0, 0, 0));
   const auto b = test::sphere_points(5000, 5.0, Vec3(20, 0, 0));
