@@ -54,7 +54,7 @@ int run_fill(const FillArgs& args) {
   opt.max_edges = args.max_edges;
   opt.refine = !args.flat;
   const recon::FillStats stats = recon::fill_holes(mesh, opt);
-  meshio::write_mesh(mesh, args.output, meshio::WriteOptions{args.ascii});
+  write_mesh_file(mesh, args.output, args.ascii);
   const recon::MeshReport after = recon::analyze(mesh);
   if (!args.preview.empty()) {
     preview::RenderOptions options;

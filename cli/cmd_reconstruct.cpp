@@ -156,7 +156,7 @@ int run_reconstruct(const ReconstructArgs& args) {
 
   auto t = Clock::now();
   report("write " + args.output);
-  meshio::write_mesh(res.mesh, args.output, meshio::WriteOptions{args.ascii});
+  write_mesh_file(res.mesh, args.output, args.ascii);
   if (!args.outliers_file.empty()) meshio::write_points_xyz(res.outliers, args.outliers_file);
   seconds["write"] = std::chrono::duration<double>(Clock::now() - t).count();
   const recon::MeshReport rep = recon::analyze(res.mesh);

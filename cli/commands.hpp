@@ -3,12 +3,16 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
+#include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/mesh.hpp"
 
 namespace scanmesh::cli {
@@ -49,6 +53,21 @@ inline void put_fill(nlohmann::json& j, const recon::FillStats& f) {
   j["fill_vertices"] = f.vertices;
   j["faired_holes"] = f.faired;
   j["crossing_loops"] = f.crossing;
+}
+
+/// Writes `mesh` like meshio::write_mesh, and warns on stderr when the file is STL (float32 by
+/// its format) and float cannot hold the mesh to its edge lengths (a part far from the origin):
+/// PLY and OBJ then keep double precision, STL cannot.
+inline void write_mesh_file(const recon::Mesh& mesh, const std::string& file, bool ascii) {
+  meshio::write_mesh(mesh, file, meshio::WriteOptions{ascii});
+  std::string ext = std::filesystem::path(file).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".stl" && !meshio::float_holds(mesh))
+    std::fprintf(stderr,
+                 "scanmesh: warning: %s: STL stores float32 coordinates, which round this mesh's "
+                 "(far from the origin) by more than 1e-4 of its mean edge; write .ply or .obj to "
+                 "keep double precision\n",
+                 file.c_str());
 }
 
 void add_reconstruct_command(CLI::App& app, Runner& run);

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <charconv>
@@ -95,10 +96,11 @@ class AtomicFile {
   std::string buffer_;
 };
 
-/// Appends `v` as %.9g would print it (9 significant digits round-trip a float).
-void append_number(std::string& out, double v) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 9);
+/// Appends `v` as %.9g would print it (9 significant digits round-trip a float), or with 17
+/// (round-trip a double) when `digits` says so.
+void append_number(std::string& out, double v, int digits = 9) {
+  char buf[40];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, digits);
   out.append(buf, r.ptr);
 }
 
@@ -109,6 +111,12 @@ void append_u32_le(std::string& out, std::uint32_t v) {
 
 void append_f32_le(std::string& out, double v) {
   append_u32_le(out, std::bit_cast<std::uint32_t>(static_cast<float>(v)));
+}
+
+void append_f64_le(std::string& out, double v) {
+  auto u = std::bit_cast<std::uint64_t>(v);
+  if constexpr (std::endian::native == std::endian::big) u = __builtin_bswap64(u);
+  out.append(reinterpret_cast<const char*>(&u), 8);
 }
 
 Eigen::Vector3d facet_normal(const recon::Mesh& mesh, const recon::Triangle& t) {
@@ -185,20 +193,28 @@ void write_stl_ascii(const recon::Mesh& mesh, AtomicFile& out) {
   out.append(chunk);
 }
 
-void write_ply(const recon::Mesh& mesh, AtomicFile& out, const std::filesystem::path& file) {
+void write_ply(const recon::Mesh& mesh, AtomicFile& out, const std::filesystem::path& file,
+               bool as_double) {
   if (mesh.vertices.size() > std::numeric_limits<std::uint32_t>::max() ||
       mesh.triangles.size() > std::numeric_limits<std::uint32_t>::max()) {
     fail_write(file, "too many vertices or triangles for this writer");
   }
+  const std::string type = as_double ? "double" : "float";
   std::string chunk =
       "ply\nformat binary_little_endian 1.0\ncomment written by scanmesh\nelement vertex " +
-      std::to_string(mesh.vertices.size()) +
-      "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-      std::to_string(mesh.triangles.size()) + "\nproperty list uchar " +
+      std::to_string(mesh.vertices.size()) + "\nproperty " + type + " x\nproperty " + type +
+      " y\nproperty " + type + " z\nelement face " + std::to_string(mesh.triangles.size()) +
+      "\nproperty list uchar " +
       (mesh.vertices.size() > std::numeric_limits<std::int32_t>::max() ? "uint" : "int") +
       " vertex_indices\nend_header\n";
   for (const Eigen::Vector3d& v : mesh.vertices) {
-    for (int k = 0; k < 3; ++k) append_f32_le(chunk, v[k]);
+    for (int k = 0; k < 3; ++k) {
+      if (as_double) {
+        append_f64_le(chunk, v[k]);
+      } else {
+        append_f32_le(chunk, v[k]);
+      }
+    }
     if (chunk.size() >= kChunk) {
       out.append(chunk);
       chunk.clear();
@@ -215,13 +231,13 @@ void write_ply(const recon::Mesh& mesh, AtomicFile& out, const std::filesystem::
   out.append(chunk);
 }
 
-void write_obj(const recon::Mesh& mesh, AtomicFile& out) {
+void write_obj(const recon::Mesh& mesh, AtomicFile& out, bool as_double) {
   std::string chunk = "# written by scanmesh\n";
   for (const Eigen::Vector3d& v : mesh.vertices) {
     chunk.push_back('v');
     for (int k = 0; k < 3; ++k) {
       chunk.push_back(' ');
-      append_number(chunk, v[k]);
+      append_number(chunk, v[k], as_double ? 17 : 9);
     }
     chunk.push_back('\n');
     if (chunk.size() >= kChunk) {
@@ -246,6 +262,19 @@ void write_obj(const recon::Mesh& mesh, AtomicFile& out) {
 
 }  // namespace
 
+bool float_holds(const recon::Mesh& mesh) {
+  double extent = 0, edges = 0;
+  for (const Eigen::Vector3d& v : mesh.vertices) extent = std::max(extent, v.cwiseAbs().maxCoeff());
+  std::size_t counted = 0;
+  for (const recon::Triangle& t : mesh.triangles) {
+    if (t[0] >= mesh.vertices.size() || t[1] >= mesh.vertices.size()) continue;
+    edges += (mesh.vertices[t[1]] - mesh.vertices[t[0]]).norm();
+    ++counted;
+  }
+  if (counted == 0 || !(edges > 0)) return true;
+  return 0x1.0p-24 * extent <= 1e-4 * edges / static_cast<double>(counted);
+}
+
 void write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
                 const WriteOptions& options) {
   const std::string ext = detail::lower_extension(file);
@@ -261,9 +290,9 @@ void write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
       write_stl_binary(mesh, out, file);
     }
   } else if (ext == ".ply") {
-    write_ply(mesh, out, file);
+    write_ply(mesh, out, file, !float_holds(mesh));
   } else {
-    write_obj(mesh, out);
+    write_obj(mesh, out, !float_holds(mesh));
   }
   out.commit();
 }

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -21,6 +22,7 @@
 #include <vector>
 
 #include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/mesh.hpp"
 #include "support/process.hpp"
@@ -164,6 +166,34 @@ TEST_CASE("reconstruct writes .stl .ply .obj by extension and --ascii STL", "[cl
   // The default STL is binary: an 80-byte header, a count, 50 bytes per triangle.
   const std::string binary = slurp(dir / "mesh.stl");
   CHECK(binary.size() == 84 + 50 * scanmesh::meshio::read_mesh(dir / "mesh.stl").triangles.size());
+}
+
+// A part in machine coordinates far from the origin at a fine spacing: the PLY keeps double
+// precision (the vertices come back exactly as reconstructed), and an STL, float32 by its
+// format, is written with a warning that says so.
+TEST_CASE("reconstruct far from the origin: PLY in double, a warning for STL", "[cli]") {
+  TempDir dir;
+  const fs::path cloud = dir / "far.xyz";
+  std::string text;
+  char line[96];
+  for (const auto& p : scanmesh::test::sphere_points(3000, 10.0, {1e6, -1e6, 2e6})) {
+    std::snprintf(line, sizeof line, "%.17g %.17g %.17g\n", p.x(), p.y(), p.z());
+    text += line;
+  }
+  spit(cloud, text);
+  const RunResult ply = run(dir, {"reconstruct", cloud, "-o", dir / "far.ply", "--json"});
+  INFO(describe(ply));
+  REQUIRE(ply.status == 0);
+  CHECK(ply.err.find("warning") == std::string::npos);
+  CHECK(slurp(dir / "far.ply").find("property double x") != std::string::npos);
+  const scanmesh::recon::MeshReport rep =
+      scanmesh::recon::analyze(scanmesh::meshio::read_mesh(dir / "far.ply"));
+  CHECK(rep.boundary_loops == 0);
+  CHECK(rep.genus == 0);
+  const RunResult stl = run(dir, {"reconstruct", cloud, "-o", dir / "far.stl"});
+  INFO(describe(stl));
+  REQUIRE(stl.status == 0);
+  CHECK(stl.err.find("far.stl: STL stores float32 coordinates") != std::string::npos);
 }
 
 TEST_CASE("usage errors exit 2", "[cli]") {

@@ -120,6 +120,31 @@ TEST_CASE("write_mesh: round trip through every format", "[meshio]") {
         std::vector<std::string>{"UPPER.PLY", "m.obj", "m.ply", "m.stl", "ma.stl"});
 }
 
+// A part far from the origin at a fine spacing (machine coordinates): float would move its
+// vertices by a good part of an edge, so PLY and OBJ keep double precision; near the origin they
+// stay float (half the file).
+TEST_CASE("write_mesh: double precision where float cannot hold the mesh", "[meshio]") {
+  TempDir dir;
+  Mesh far;
+  const Vec3 o(2.0e5, -3.0e5, 1.0e5);
+  far.vertices = {o, o + Vec3(1e-3, 0, 0), o + Vec3(0, 1e-3, 0), o + Vec3(1e-3, 1e-3, 1e-4)};
+  far.triangles = {{0, 1, 2}, {1, 3, 2}};
+  CHECK_FALSE(meshio::float_holds(far));
+  CHECK(meshio::float_holds(test_mesh()));
+  for (const char* name : {"far.ply", "far.obj"}) {
+    INFO(name);
+    const fs::path p = dir.path() / name;
+    meshio::write_mesh(far, p);
+    const Mesh back = meshio::read_mesh(p);
+    REQUIRE(back.vertices.size() == far.vertices.size());
+    for (std::size_t v = 0; v < far.vertices.size(); ++v) CHECK(back.vertices[v] == far.vertices[v]);
+    CHECK(back.triangles == far.triangles);
+  }
+  CHECK(slurp(dir.path() / "far.ply").find("property double x") != std::string::npos);
+  meshio::write_mesh(test_mesh(), dir.path() / "near.ply");
+  CHECK(slurp(dir.path() / "near.ply").find("property float x") != std::string::npos);
+}
+
 TEST_CASE("write_mesh: empty mesh round trips", "[meshio]") {
   TempDir dir;
   for (const char* name : {"e.stl", "e.ply", "e.obj"}) {

@@ -46,7 +46,14 @@ struct WriteOptions {
   bool ascii_stl = false;  ///< STL only: text instead of binary
 };
 
+/// Whether float coordinates hold this mesh: rounding to float (2^-24 of the largest coordinate)
+/// moves no vertex by more than 1e-4 of the mean edge length. False for a part far from the
+/// origin at a fine spacing; write_mesh then keeps double precision where the format allows.
+bool float_holds(const recon::Mesh& mesh);
+
 /// Writes by extension: .stl (binary unless ascii_stl), .ply (binary little endian), .obj.
+/// Coordinates are float (PLY `float`, 9 significant digits in text) when float_holds(mesh),
+/// otherwise double (PLY `double`, 17 digits in text); binary STL is float by its format.
 /// Writes to a temporary file beside the target and renames it into place, so no partial file
 /// is ever left under the final name. Throws OutputError naming the file and the OS error.
 void write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
