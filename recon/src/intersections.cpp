@@ -13,6 +13,7 @@ namespace scanmesh::recon {
 namespace {
 
 constexpr double kTolerance = 1e-9;  // of the pair's longest edge
+constexpr double kParallel2 = 1e-12;  // squared sine: planes closer than 1e-6 rad are one
 /// A triangle whose bounding box covers more cells than this is tested against every triangle
 /// whose box it overlaps (a long patch triangle must not fill the grid).
 constexpr std::size_t kMaxCells = 512;
@@ -125,7 +126,13 @@ bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, cons
     return (d[0] > 0 && d[1] > 0 && d[2] > 0) || (d[0] < 0 && d[1] < 0 && d[2] < 0);
   };
   if (one_side(dp) || one_side(dq)) return false;
-  const bool coplanar = (dp[0] == 0 && dp[1] == 0 && dp[2] == 0) || (dq[0] == 0 && dq[1] == 0 && dq[2] == 0);
+  // Planes within 1e-6 rad of each other count as one: the line where they meet is then
+  // ill-conditioned, and the tolerance above zeroes some distances but not others (two
+  // triangles of a flat face meeting at a corner, their edges through it collinear, were
+  // reported as crossing), so the pair is decided in the plane instead.
+  const bool coplanar = (dp[0] == 0 && dp[1] == 0 && dp[2] == 0) ||
+                        (dq[0] == 0 && dq[1] == 0 && dq[2] == 0) ||
+                        n1.cross(n2).squaredNorm() < kParallel2;
   if (coplanar) {
     int drop = 0;  // project along the normal's largest axis
     n1.cwiseAbs().maxCoeff(&drop);

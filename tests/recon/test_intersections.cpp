@@ -88,6 +88,21 @@ TEST_CASE("find_self_intersections: each kind of pair", "[recon][intersections]"
     CHECK(crossing_pairs(pair_of(base, {o, y, Vec3(-1, -1, 0)})) == 0);
     CHECK(crossing_pairs(pair_of(base, {o, Vec3(1, 1, 0), Vec3(-0.5, 1, 0)})) == 1);
   }
+  SECTION("nearly coplanar, sharing a vertex, edges collinear through it") {
+    // Two triangles of one flat face meeting only at a corner, their bottom edges on one line;
+    // the second tilts by 1e-9 rad, so the tolerance zeroed one of its heights but not the
+    // other, and the planes' meeting line was taken as real: reported as crossing. (Coordinates
+    // of a pair from a simulated line scan, and the same shape made by hand.)
+    const Vec3 a(38.821023500000003, 4.0463221100000002, 22.870633999999999),
+        b(39.122436800000003, 4.0344795500000004, 22.8923117),
+        c(39.083554100000001, 4.0360072599999999, 22.989509200000001),
+        d(39.375269799999998, 4.0245457199999999, 23.010489400000001),
+        e(39.423406999999997, 4.0226544000000004, 22.913957499999999);
+    CHECK(crossing_pairs(pair_of({a, b, c}, {b, d, e})) == 0);
+    CHECK(crossing_pairs(pair_of(base, {x, Vec3(1.86, 0.3, -0.9e-9), Vec3(2, 0, -1.8e-9)})) == 0);
+    // the same tilt, but the second triangle reaching back over the first: found
+    CHECK(crossing_pairs(pair_of(base, {x, Vec3(0.5, 0.3, -0.9e-9), Vec3(2, 0, -1.8e-9)})) == 1);
+  }
   SECTION("sharing an edge") {
     // a ridge, a flat continuation, and a fold back onto the first triangle
     CHECK(crossing_pairs(pair_of(base, {x, o, Vec3(0.5, -1, 1)})) == 0);
