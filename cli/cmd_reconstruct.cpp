@@ -203,6 +203,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["turning_points"] = res.turning_points;
+    j["dropped_components"] = res.dropped_components;
     j["output"] = args.output;
     if (!args.preview.empty()) j["preview"] = args.preview;
     j["seconds_total"] = total;

@@ -304,7 +304,7 @@ class Builder {
   }
   void update_state(std::uint32_t v) {
     state_[v] = head_out_[v] == kNone ? VertexState::kDone : VertexState::kFront;
-    if (state_[v] == VertexState::kDone && !corner_head_.empty() && !turning_[v]) release_corners(v);
+    if (state_[v] == VertexState::kDone && !corner_head_.empty() && turning_[v] != 1) release_corners(v);
   }
   [[nodiscard]] Vec3 tri_normal(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
     return (p_[b] - p_[a]).cross(p_[c] - p_[a]);
@@ -403,6 +403,8 @@ class Builder {
   /// front edge at all).
   std::size_t repair_fans(bool thorough = false);
   void orient_components();
+  /// Removes every smaller component that crosses another component (see the definition).
+  void drop_crossing_components();
   void rebuild_front();
   /// Replaces the front around the corners of `removed` (triangles repair_fans dropped).
   void update_front_after_removal(const std::vector<Triangle>& removed,
@@ -422,7 +424,7 @@ class Builder {
   void release_corners(std::uint32_t v);
   void rebuild_corner_lists();
   [[nodiscard]] bool keeps_list(std::uint32_t v) const {
-    return turning_[v] != 0 || state_[v] != VertexState::kDone;
+    return turning_[v] == 1 || state_[v] != VertexState::kDone;
   }
   [[nodiscard]] bool turning(const Triangle& t) const {
     return (turning_[t[0]] | turning_[t[1]] | turning_[t[2]]) != 0;
@@ -1303,6 +1305,17 @@ void Builder::rebuild_front() {
   rebuild_corner_lists();
 }
 
+/// A small component that crosses another grows from a seed among points a larger one left
+/// unused under its triangles (at a sharp rim, where long triangles span the points along it; a
+/// simulated line scan's cylinder rim had a 45-triangle flap over the cap): two sheets over one
+/// surface, which no test of the growth sees (the other sheet has no front there, and its
+/// vertices keep no corner lists). remove_crossing_components drops the smaller of each such
+/// pair; its points become outliers, and the insertion stage puts them into the triangles they
+/// lie on.
+void Builder::drop_crossing_components() {
+  res_.dropped_components += remove_crossing_components(p_, tris_);
+}
+
 void Builder::orient_components() {
   // Components by union-find over shared vertices (fans are single after repair_fans).
   const std::size_t n = p_.size();
@@ -1428,7 +1441,23 @@ void Builder::mark_turning_points() {
     });
     turning_[v] = found ? 1 : 0;
   }
-  for (std::uint8_t t : turning_) res_.turning_points += t;
+  // Points within reach of a turning point (2): a triangle there can cross one that a turning
+  // point holds (a bevel across a sharp rim whose other face is unsampled: the cap beside it
+  // has no turning point of its own, but the bevel's wall corner is one). Their triangles get
+  // the test against everything near too; only turning points keep their lists.
+  for (std::uint32_t v = 0; v < n; ++v) {
+    if (turning_[v] != 1) continue;
+    const double r = opt_.radius_factor * 1.5 * spacing(v);
+    const double r2 = r * r;
+    const Vec3& pv = p_[v];
+    grid_.for_each_range_within(pv, r, [&](std::uint32_t first, std::uint32_t last) {
+      for (std::uint32_t s = first; s < last; ++s) {
+        const std::uint32_t u = order[s];
+        if (turning_[u] == 0 && (p_[u] - pv).squaredNorm() <= r2) turning_[u] = 2;
+      }
+    });
+  }
+  for (std::uint8_t t : turning_) res_.turning_points += t == 1 ? 1 : 0;
 }
 
 void Builder::link_corner(std::uint32_t v, std::uint32_t tri) {
@@ -1586,6 +1615,7 @@ FrontResult Builder::run() {
     if (round < 2) fill_small_loops();
   }
   edges_map_ = EdgeMap(0);  // not needed any more
+  drop_crossing_components();
   orient_components();
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);

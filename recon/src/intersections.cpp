@@ -158,18 +158,24 @@ bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, cons
 
 SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_examples,
                                           std::size_t from) {
+  return find_self_intersections(mesh.vertices, mesh.triangles, max_examples, from);
+}
+
+SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
+                                          std::span<const Triangle> triangles,
+                                          std::size_t max_examples, std::size_t from) {
   SelfIntersections out;
-  const std::size_t nt = mesh.triangles.size();
-  const std::size_t nv = mesh.vertices.size();
+  const std::size_t nt = triangles.size();
+  const std::size_t nv = vertices.size();
   std::vector<std::uint32_t> valid;
   std::vector<Box> box(nt);
   double edge_sum = 0;
   Vec3 origin = Vec3::Constant(std::numeric_limits<double>::infinity());
   for (std::uint32_t i = 0; i < nt; ++i) {
-    const Triangle& t = mesh.triangles[i];
+    const Triangle& t = triangles[i];
     if (t[0] >= nv || t[1] >= nv || t[2] >= nv || t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
       continue;
-    const Vec3 &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+    const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
     if (!(a.allFinite() && b.allFinite() && c.allFinite())) continue;
     if ((b - a).cross(c - a).squaredNorm() == 0) continue;
     box[i] = {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)};
@@ -251,7 +257,7 @@ SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_exam
         if (std::max(range[a][0], range[b][0]) != cx || std::max(range[a][1], range[b][1]) != cy ||
             std::max(range[a][2], range[b][2]) != cz)
           continue;
-        if (triangles_intersect(mesh.vertices, mesh.triangles[a], mesh.triangles[b])) record(a, b);
+        if (triangles_intersect(vertices, triangles[a], triangles[b])) record(a, b);
       }
     }
     g = e;
@@ -262,11 +268,64 @@ SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_exam
       if (b == a || (b < a && std::binary_search(big.begin(), big.end(), b))) continue;
       if (a < from && b < from) continue;
       if (!box[a].overlaps(box[b])) continue;
-      if (triangles_intersect(mesh.vertices, mesh.triangles[a], mesh.triangles[b])) record(a, b);
+      if (triangles_intersect(vertices, triangles[a], triangles[b])) record(a, b);
     }
   }
   out.triangles = static_cast<std::size_t>(std::count(involved.begin(), involved.end(), 1));
   return out;
+}
+
+std::size_t remove_crossing_components(std::span<const Vec3> vertices,
+                                       std::vector<Triangle>& triangles) {
+  constexpr std::uint32_t kNone = 0xffffffffu;
+  const std::size_t n = vertices.size();
+  for (const Triangle& t : triangles)
+    for (std::uint32_t v : t)
+      if (v >= n) return 0;  // not a mesh of these vertices: nothing to decide
+  std::vector<std::uint32_t> parent(n);
+  for (std::uint32_t i = 0; i < n; ++i) parent[i] = i;
+  auto find = [&](std::uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const Triangle& t : triangles)
+    for (int k = 1; k < 3; ++k) {
+      const std::uint32_t a = find(t[0]), b = find(t[static_cast<std::size_t>(k)]);
+      if (a != b) parent[b] = a;
+    }
+  std::vector<std::uint32_t> cid(n, kNone), size;
+  for (const Triangle& t : triangles) {
+    std::uint32_t& c = cid[find(t[0])];
+    if (c == kNone) {
+      c = static_cast<std::uint32_t>(size.size());
+      size.push_back(0);
+    }
+    ++size[c];
+  }
+  if (size.size() < 2) return 0;
+  auto comp = [&](const Triangle& t) { return cid[find(t[0])]; };
+  const auto largest =
+      static_cast<std::uint32_t>(std::max_element(size.begin(), size.end()) - size.begin());
+  // The largest component's triangles first, so that only pairs with a smaller one are tested.
+  std::vector<std::uint32_t> order;
+  order.reserve(triangles.size());
+  for (int pass = 0; pass < 2; ++pass)
+    for (std::uint32_t i = 0; i < triangles.size(); ++i)
+      if ((comp(triangles[i]) == largest) == (pass == 0)) order.push_back(i);
+  std::vector<Triangle> sorted(triangles.size());
+  for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = triangles[order[i]];
+  const SelfIntersections crossing =
+      find_self_intersections(vertices, sorted, kAllPairs, size[largest]);
+  std::vector<Triangle>().swap(sorted);
+  std::vector<std::uint8_t> drop(size.size(), 0);
+  for (const auto& [i, j] : crossing.examples) {
+    const std::uint32_t ci = comp(triangles[order[i]]), cj = comp(triangles[order[j]]);
+    if (ci == cj) continue;
+    drop[size[ci] < size[cj] || (size[ci] == size[cj] && ci > cj) ? ci : cj] = 1;
+  }
+  const auto dropped = static_cast<std::size_t>(std::count(drop.begin(), drop.end(), 1));
+  if (dropped > 0) std::erase_if(triangles, [&](const Triangle& t) { return drop[comp(t)] != 0; });
+  return dropped;
 }
 
 }  // namespace scanmesh::recon

@@ -177,6 +177,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.points_scanned = fr.points_scanned;
   res.seed_attempts = fr.seed_attempts;
   res.turning_points = fr.turning_points;
+  res.dropped_components = fr.dropped_components;
   if (options.fill.max_edges > 0) {
     stage("fill");
     res.fill = fill_holes(res.mesh, options.fill);

@@ -143,3 +143,25 @@ TEST_CASE("find_self_intersections: a closed mesh has none; a sheet pushed throu
   // Only what was added: the same pairs.
   CHECK(find_self_intersections(sphere, 0, sphere_triangles).pairs == r.pairs);
 }
+
+// Two sheets over one surface (a small component grown among points a larger one left under its
+// triangles) are not one surface: the smaller of a crossing pair goes, the rest stays in order.
+TEST_CASE("remove_crossing_components drops the smaller of two crossing components",
+          "[recon][intersections]") {
+  Mesh m;
+  // 0: a square in z = 0 (2 triangles); 1: a smaller triangle piercing it; 2: a triangle apart
+  m.vertices = {Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(2, 2, 0), Vec3(0, 2, 0),
+                Vec3(0.5, 0.5, -1), Vec3(1, 0.6, 1), Vec3(0.6, 1, 1),
+                Vec3(5, 5, 0), Vec3(6, 5, 0), Vec3(5, 6, 0)};
+  m.triangles = {{4, 5, 6}, {0, 1, 2}, {7, 8, 9}, {0, 2, 3}};
+  REQUIRE(find_self_intersections(m).pairs == 2);  // it crosses both halves of the square
+  CHECK(scanmesh::recon::remove_crossing_components(m.vertices, m.triangles) == 1);
+  CHECK(m.triangles == std::vector<Triangle>{{0, 1, 2}, {7, 8, 9}, {0, 2, 3}});
+  CHECK(find_self_intersections(m).pairs == 0);
+  // nothing crosses now, and a single component is left alone whatever it does to itself
+  CHECK(scanmesh::recon::remove_crossing_components(m.vertices, m.triangles) == 0);
+  Mesh one = m;
+  one.triangles = {{0, 1, 2}, {0, 2, 3}};
+  CHECK(scanmesh::recon::remove_crossing_components(one.vertices, one.triangles) == 0);
+  CHECK(one.triangles.size() == 2);
+}

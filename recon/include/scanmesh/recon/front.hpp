@@ -65,6 +65,8 @@ struct FrontResult {
   std::size_t points_scanned = 0;    ///< grid points visited while gathering candidates
   std::size_t seed_attempts = 0;
   std::size_t turning_points = 0;  ///< points near which the surface turns back (crossing guard)
+  /// Small components removed because they crossed another one (their points are outliers).
+  std::size_t dropped_components = 0;
 };
 
 /// Triangulates `points` (with `frames` from estimate_frames and `grid` indexing the points

@@ -32,11 +32,22 @@ struct SelfIntersections {
 /// added to a mesh: hole-filling patches). max_examples = kAllPairs keeps every pair found.
 SelfIntersections find_self_intersections(const Mesh& mesh, std::size_t max_examples = 16,
                                           std::size_t from = 0);
+/// The same over a vertex array and a triangle list (no Mesh to build).
+SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
+                                          std::span<const Triangle> triangles,
+                                          std::size_t max_examples = 16, std::size_t from = 0);
 
 /// The pair test itself: do triangles s and t (indices into `vertices`, neither degenerate)
 /// intersect other than along the vertices they share? Same tolerance as above.
 bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t);
 
 inline constexpr std::size_t kAllPairs = static_cast<std::size_t>(-1);
+
+/// Removes every component (triangles joined through shared vertices) that crosses another
+/// component, the smaller of the two (by triangles; ties: the later one). The order of the kept
+/// triangles is unchanged. Returns the number of components removed. Costs nothing with a
+/// single component; otherwise a check of the smaller components against everything.
+std::size_t remove_crossing_components(std::span<const Vec3> vertices,
+                                       std::vector<Triangle>& triangles);
 
 }  // namespace scanmesh::recon

@@ -50,6 +50,8 @@ struct ReconstructResult {
   FillStats fill;      ///< holes closed on request (options.fill)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
   std::size_t turning_points = 0;  ///< points the crossing guard tests against everything near
+  /// Small components the front removed because they crossed another (points then inserted).
+  std::size_t dropped_components = 0;
 };
 
 /// Called with the name of each stage when it starts ("reduce", "normals", "front", "refine",
