@@ -420,6 +420,7 @@ class Builder {
   // triangles, and away from turning points no new triangle reaches it except over the front).
   void mark_turning_points();
   void push_triangle(const Triangle& t);
+  void mark_bent(const Triangle& t);
   void link_corner(std::uint32_t v, std::uint32_t tri);
   void release_corners(std::uint32_t v);
   void rebuild_corner_lists();
@@ -453,6 +454,8 @@ class Builder {
   static constexpr double kMaxSparsity = 2.5;
   /// Cosine of 5 degrees: corner normals this close to a new triangle's skip its fan test.
   static constexpr float kCosFlat = 0.9961947f;
+  /// Cosine of 30 degrees: a triangle further than this from a corner's normal is bent.
+  static constexpr float kCosBent = 0.8660254f;
   /// Edges whose front angle at either end is below 120 degrees are processed first.
   const double ear_turn_ = turn_of_degrees(120);
   double max_spacing_ = 0;
@@ -1487,6 +1490,38 @@ void Builder::push_triangle(const Triangle& t) {
   tris_.push_back(t);
   if (corner_head_.empty()) return;
   for (std::uint32_t v : t) link_corner(v, id);  // new corners are never closed yet
+  mark_bent(t);
+}
+
+void Builder::mark_bent(const Triangle& t) {
+  // A triangle more than 30 degrees off one of its corners' normals bends across a feature (a
+  // bevel over a sharp edge). Where one face of the edge is sampled sparsely, the normals there
+  // blend both faces and no turning point marks the edge, yet the triangles grown beside the
+  // bevel later can cross it. So its corners become turning points (their lists stay, holding
+  // the bevel), and the points within reach of it get the test against everything near.
+  const Vec3 n = tri_normal(t[0], t[1], t[2]);
+  const double len = n.norm();
+  if (!(len > 0)) return;
+  const Eigen::Vector3f nf = (n / len).cast<float>();
+  bool bent = false;
+  for (std::uint32_t v : t) bent = bent || std::abs(f_.normal[v].dot(nf)) < kCosBent;
+  if (!bent) return;
+  double r = 0;
+  for (std::uint32_t v : t) {
+    turning_[v] = 1;
+    r = std::max(r, opt_.radius_factor * 1.5 * spacing(v));
+  }
+  const Vec3 c = (p_[t[0]] + p_[t[1]] + p_[t[2]]) / 3.0;
+  const double reach = std::sqrt(std::max({(p_[t[0]] - c).squaredNorm(), (p_[t[1]] - c).squaredNorm(),
+                                           (p_[t[2]] - c).squaredNorm()})) + r;
+  const double reach2 = reach * reach;
+  const std::uint32_t* order = grid_.order().data();
+  grid_.for_each_range_within(c, reach, [&](std::uint32_t first, std::uint32_t last) {
+    for (std::uint32_t s = first; s < last; ++s) {
+      const std::uint32_t u = order[s];
+      if (turning_[u] == 0 && (p_[u] - c).squaredNorm() <= reach2) turning_[u] = 2;
+    }
+  });
 }
 
 void Builder::rebuild_corner_lists() {
