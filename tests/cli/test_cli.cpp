@@ -608,19 +608,20 @@ TEST_CASE("the demo's scan of the container reconstructs to a closed manifold", 
   CHECK(d.at("hausdorff").get<double>() < 1.0);
 }
 
-// A line profiler scanning the container from several table angles: the rim of its cylinder
-// and the box's top edges are sharp edges whose other face the views sample sparsely or not at
-// all, so the front bevels across them with long triangles, and the triangles grown beside a
-// bevel later could cross it. Fixed by testing the points within reach of a turning point like
-// turning points (the 6-view scan: 21 crossing pairs before), and by marking the corners of a
-// bent triangle (over 30 degrees off a corner's normal) as turning points (the 5-view scan: 8
-// pairs before). Checked: no crossing, one component, manifold and oriented. (Their open loops
-// are the unseen bottom, the holes' lower walls and the cylinder's upper wall: coverage.)
+// A line profiler scanning the container from six table angles: the rim of its cylinder and
+// the box's top edges are sharp edges whose other face the views sample sparsely or not at all,
+// so the front bevels across them with long triangles, and the triangles grown beside a bevel
+// later could cross it. Fixed by testing the points within reach of a turning point like
+// turning points (18 crossing pairs -> 5 on this scan), and by marking the corners of a bent
+// triangle (over 30 degrees off a corner's normal) as turning points (5 -> 0). Checked: no
+// crossing, one component, manifold and oriented. (Its open loops are the unseen bottom, the
+// holes' lower walls and the cylinder's upper wall: coverage, not reconstruction.) About 100k
+// reduced points: the smallest scans of it that showed both problems.
 TEST_CASE("simulated multi-view line scans of the container mesh without crossings", "[cli][sim]") {
   struct Scan {
     const char *views, *spacing, *profile_points;
   };
-  for (const Scan& scan : {Scan{"6", "0.3", "150"}, Scan{"5", "0.5", "100"}}) {
+  for (const Scan& scan : {Scan{"6", "0.5", "100"}}) {
     INFO("views " << scan.views << ", spacing " << scan.spacing);
     TempDir dir;
     const auto cloud = dir / "views.xyz";
