@@ -10,6 +10,7 @@
 #include "scanmesh/recon/front.hpp"
 
 #include "scanmesh/recon/intersections.hpp"
+#include "triangle_components.hpp"
 #include "triangle_shape.hpp"
 
 #include <algorithm>
@@ -1325,30 +1326,12 @@ void Builder::drop_crossing_components() {
 }
 
 void Builder::orient_components() {
-  // Components by union-find over shared vertices (fans are single after repair_fans).
+  // Components over shared vertices (fans are single after repair_fans), with compact ids: the
+  // per-component sums below need one slot per component (this runs at the peak of memory).
   const std::size_t n = p_.size();
-  std::vector<std::uint32_t> parent(n);
-  for (std::uint32_t i = 0; i < n; ++i) parent[i] = i;
-  auto find = [&](std::uint32_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  for (const Triangle& t : tris_) {
-    const std::uint32_t r0 = find(t[0]);
-    for (int k = 1; k < 3; ++k) {
-      const std::uint32_t r = find(t[static_cast<std::size_t>(k)]);
-      if (r != r0) parent[r] = r0;
-    }
-  }
-  // Compact component ids: the per-component sums below need one slot per component, not per
-  // vertex (memory: this runs at the peak of the reconstruction).
-  std::vector<std::uint32_t> cid(n, kNone);
-  std::uint32_t ncomp = 0;
-  for (const Triangle& t : tris_) {
-    const std::uint32_t r = find(t[0]);
-    if (cid[r] == kNone) cid[r] = ncomp++;
-  }
-  auto comp = [&](const Triangle& t) { return cid[find(t[0])]; };
+  detail::TriangleComponents components(n, tris_);
+  const auto ncomp = static_cast<std::uint32_t>(components.count());
+  auto comp = [&](const Triangle& t) { return components.of(t); };
   // Per component: boundary edges (to know whether it is closed) and signed volume. An edge
   // {u, v} is a boundary edge when exactly one of u's triangles contains v (vertex -> triangle
   // lists, 4 bytes per corner).

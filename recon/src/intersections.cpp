@@ -5,6 +5,8 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/intersections.hpp"
 
+#include "triangle_components.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -277,33 +279,14 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
 
 std::size_t remove_crossing_components(std::span<const Vec3> vertices,
                                        std::vector<Triangle>& triangles) {
-  constexpr std::uint32_t kNone = 0xffffffffu;
   const std::size_t n = vertices.size();
   for (const Triangle& t : triangles)
     for (std::uint32_t v : t)
       if (v >= n) return 0;  // not a mesh of these vertices: nothing to decide
-  std::vector<std::uint32_t> parent(n);
-  for (std::uint32_t i = 0; i < n; ++i) parent[i] = i;
-  auto find = [&](std::uint32_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  for (const Triangle& t : triangles)
-    for (int k = 1; k < 3; ++k) {
-      const std::uint32_t a = find(t[0]), b = find(t[static_cast<std::size_t>(k)]);
-      if (a != b) parent[b] = a;
-    }
-  std::vector<std::uint32_t> cid(n, kNone), size;
-  for (const Triangle& t : triangles) {
-    std::uint32_t& c = cid[find(t[0])];
-    if (c == kNone) {
-      c = static_cast<std::uint32_t>(size.size());
-      size.push_back(0);
-    }
-    ++size[c];
-  }
-  if (size.size() < 2) return 0;
-  auto comp = [&](const Triangle& t) { return cid[find(t[0])]; };
+  detail::TriangleComponents components(n, triangles);
+  if (components.count() < 2) return 0;
+  const std::vector<std::uint32_t>& size = components.sizes();
+  auto comp = [&](const Triangle& t) { return components.of(t); };
   const auto largest =
       static_cast<std::uint32_t>(std::max_element(size.begin(), size.end()) - size.begin());
   // The largest component's triangles first, so that only pairs with a smaller one are tested.
