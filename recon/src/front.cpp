@@ -214,19 +214,21 @@ double orient(const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& n) {
 /// that a configuration that only just misses does not touch once written as float (STL, PLY).
 bool segments_meet(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2, const Vec3& n,
                    double clear) {
-  const double lp = (p2 - p1).norm(), lq = (q2 - q1).norm();
-  auto sign = [](double d, double tol) { return d > tol ? 1 : (d < -tol ? -1 : 0); };
-  const double tq = clear * lq;  // orient(q1, q2, x) = lq * signed distance of x from that line
-  const int s1 = sign(orient(q1, q2, p1, n), tq), s2 = sign(orient(q1, q2, p2, n), tq);
+  // orient(q1, q2, x) is |q2 - q1| times the signed distance of x from that line: compared in
+  // squares, so that the hot path takes no square root.
+  const double c2 = clear * clear;
+  auto sign = [](double d, double tol2) { return d * d <= tol2 ? 0 : (d > 0 ? 1 : -1); };
+  const double lq2 = (q2 - q1).squaredNorm(), tq2 = c2 * lq2;
+  const int s1 = sign(orient(q1, q2, p1, n), tq2), s2 = sign(orient(q1, q2, p2, n), tq2);
   if (s1 * s2 > 0) return false;
-  const double tp = clear * lp;
-  const int s3 = sign(orient(p1, p2, q1, n), tp), s4 = sign(orient(p1, p2, q2, n), tp);
+  const double lp2 = (p2 - p1).squaredNorm(), tp2 = c2 * lp2;
+  const int s3 = sign(orient(p1, p2, q1, n), tp2), s4 = sign(orient(p1, p2, q2, n), tp2);
   if (s3 * s4 > 0) return false;
   if (s1 != 0 || s2 != 0 || s3 != 0 || s4 != 0) return true;
-  // collinear: do the intervals along p1-p2 overlap?
+  // collinear: do the intervals along p1-p2 overlap (by more than the clearance)?
   const Vec3 u = p2 - p1;
-  const double t1 = (q1 - p1).dot(u), t2 = (q2 - p1).dot(u);
-  return std::max(t1, t2) > tp && std::min(t1, t2) < lp * lp - tp;
+  const double t1 = (q1 - p1).dot(u), t2 = (q2 - p1).dot(u), tp = clear * std::sqrt(lp2);
+  return std::max(t1, t2) > tp && std::min(t1, t2) < lp2 - tp;
 }
 
 class Builder {
