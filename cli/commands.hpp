@@ -3,9 +3,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
-#include <cctype>
 #include <cstdio>
-#include <filesystem>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -55,18 +53,15 @@ inline void put_fill(nlohmann::json& j, const recon::FillStats& f) {
   j["crossing_loops"] = f.crossing;
 }
 
-/// Writes `mesh` like meshio::write_mesh, and warns on stderr when the file is STL (float32 by
-/// its format) and float cannot hold the mesh to its edge lengths (a part far from the origin):
-/// PLY and OBJ then keep double precision, STL cannot.
+/// Writes `mesh` like meshio::write_mesh, and warns on stderr when the file is binary STL
+/// (float32 by its format) and float cannot hold the mesh to its edge lengths (a part far from
+/// the origin): PLY, OBJ and ascii STL then keep double precision, binary STL cannot.
 inline void write_mesh_file(const recon::Mesh& mesh, const std::string& file, bool ascii) {
-  meshio::write_mesh(mesh, file, meshio::WriteOptions{ascii});
-  std::string ext = std::filesystem::path(file).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (ext == ".stl" && !meshio::float_holds(mesh))
+  if (meshio::write_mesh(mesh, file, meshio::WriteOptions{ascii}).float_rounds_mesh)
     std::fprintf(stderr,
-                 "scanmesh: warning: %s: STL stores float32 coordinates, which round this mesh's "
-                 "(far from the origin) by more than 1e-4 of its mean edge; write .ply or .obj to "
-                 "keep double precision\n",
+                 "scanmesh: warning: %s: binary STL stores float32 coordinates, which round this "
+                 "mesh (far from the origin) by more than 1e-4 of its mean edge; write .ply, .obj "
+                 "or --ascii STL to keep double precision\n",
                  file.c_str());
 }
 

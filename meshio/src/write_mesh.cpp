@@ -166,12 +166,12 @@ void write_stl_binary(const recon::Mesh& mesh, AtomicFile& out, const std::files
   out.append(chunk);
 }
 
-void write_stl_ascii(const recon::Mesh& mesh, AtomicFile& out) {
+void write_stl_ascii(const recon::Mesh& mesh, AtomicFile& out, bool as_double) {
   std::string chunk = "solid scanmesh\n";
-  auto vec = [&chunk](const Eigen::Vector3d& v) {
+  auto vec = [&chunk, as_double](const Eigen::Vector3d& v) {
     for (int k = 0; k < 3; ++k) {
       chunk.push_back(' ');
-      append_number(chunk, v[k]);
+      append_number(chunk, v[k], as_double ? 17 : 9);
     }
     chunk.push_back('\n');
   };
@@ -275,26 +275,30 @@ bool float_holds(const recon::Mesh& mesh) {
   return 0x1.0p-24 * extent <= 1e-4 * edges / static_cast<double>(counted);
 }
 
-void write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
-                const WriteOptions& options) {
+WriteReport write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
+                       const WriteOptions& options) {
   const std::string ext = detail::lower_extension(file);
   if (ext != ".stl" && ext != ".ply" && ext != ".obj") {
     fail_write(file, "unknown mesh extension '" + ext + "' (use .stl, .ply or .obj)");
   }
   check_mesh(mesh, file);
+  const bool as_double = !float_holds(mesh);
+  WriteReport report;
   AtomicFile out(file);
   if (ext == ".stl") {
     if (options.ascii_stl) {
-      write_stl_ascii(mesh, out);
+      write_stl_ascii(mesh, out, as_double);
     } else {
       write_stl_binary(mesh, out, file);
+      report.float_rounds_mesh = as_double;
     }
   } else if (ext == ".ply") {
-    write_ply(mesh, out, file, !float_holds(mesh));
+    write_ply(mesh, out, file, as_double);
   } else {
-    write_obj(mesh, out, !float_holds(mesh));
+    write_obj(mesh, out, as_double);
   }
   out.commit();
+  return report;
 }
 
 void write_points_xyz(const std::vector<recon::Vec3>& points, const std::filesystem::path& file) {

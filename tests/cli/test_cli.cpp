@@ -193,7 +193,7 @@ TEST_CASE("reconstruct far from the origin: PLY in double, a warning for STL", "
   const RunResult stl = run(dir, {"reconstruct", cloud, "-o", dir / "far.stl"});
   INFO(describe(stl));
   REQUIRE(stl.status == 0);
-  CHECK(stl.err.find("far.stl: STL stores float32 coordinates") != std::string::npos);
+  CHECK(stl.err.find("far.stl: binary STL stores float32 coordinates") != std::string::npos);
 }
 
 TEST_CASE("usage errors exit 2", "[cli]") {

@@ -121,8 +121,8 @@ TEST_CASE("write_mesh: round trip through every format", "[meshio]") {
 }
 
 // A part far from the origin at a fine spacing (machine coordinates): float would move its
-// vertices by a good part of an edge, so PLY and OBJ keep double precision; near the origin they
-// stay float (half the file).
+// vertices by a good part of an edge, so PLY, OBJ and ascii STL keep double precision (near the
+// origin they stay float: half the file); binary STL cannot, and says so.
 TEST_CASE("write_mesh: double precision where float cannot hold the mesh", "[meshio]") {
   TempDir dir;
   Mesh far;
@@ -131,16 +131,19 @@ TEST_CASE("write_mesh: double precision where float cannot hold the mesh", "[mes
   far.triangles = {{0, 1, 2}, {1, 3, 2}};
   CHECK_FALSE(meshio::float_holds(far));
   CHECK(meshio::float_holds(test_mesh()));
-  for (const char* name : {"far.ply", "far.obj"}) {
+  for (const char* name : {"far.ply", "far.obj", "far_ascii.stl"}) {
     INFO(name);
     const fs::path p = dir.path() / name;
-    meshio::write_mesh(far, p);
+    CHECK_FALSE(meshio::write_mesh(far, p, meshio::WriteOptions{true}).float_rounds_mesh);
     const Mesh back = meshio::read_mesh(p);
     REQUIRE(back.vertices.size() == far.vertices.size());
     for (std::size_t v = 0; v < far.vertices.size(); ++v) CHECK(back.vertices[v] == far.vertices[v]);
     CHECK(back.triangles == far.triangles);
   }
   CHECK(slurp(dir.path() / "far.ply").find("property double x") != std::string::npos);
+  // binary STL is float32 by its format: written, and reported
+  CHECK(meshio::write_mesh(far, dir.path() / "far.stl").float_rounds_mesh);
+  CHECK_FALSE(meshio::write_mesh(test_mesh(), dir.path() / "near.stl").float_rounds_mesh);
   meshio::write_mesh(test_mesh(), dir.path() / "near.ply");
   CHECK(slurp(dir.path() / "near.ply").find("property float x") != std::string::npos);
 }

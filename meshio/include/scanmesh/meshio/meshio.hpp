@@ -51,13 +51,19 @@ struct WriteOptions {
 /// origin at a fine spacing; write_mesh then keeps double precision where the format allows.
 bool float_holds(const recon::Mesh& mesh);
 
+struct WriteReport {
+  /// The format stores float32 (binary STL) and float cannot hold this mesh (float_holds).
+  bool float_rounds_mesh = false;
+};
+
 /// Writes by extension: .stl (binary unless ascii_stl), .ply (binary little endian), .obj.
 /// Coordinates are float (PLY `float`, 9 significant digits in text) when float_holds(mesh),
-/// otherwise double (PLY `double`, 17 digits in text); binary STL is float by its format.
+/// otherwise double (PLY `double`, 17 digits in text); binary STL is float by its format, and
+/// the report says when that rounds the mesh.
 /// Writes to a temporary file beside the target and renames it into place, so no partial file
 /// is ever left under the final name. Throws OutputError naming the file and the OS error.
-void write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
-                const WriteOptions& options = {});
+WriteReport write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
+                       const WriteOptions& options = {});
 
 /// Writes points as "x y z\n" text (%.9g), atomically like write_mesh.
 void write_points_xyz(const std::vector<recon::Vec3>& points, const std::filesystem::path& file);
