@@ -443,6 +443,15 @@ class Builder {
   bool crosses_fans(const Triangle& t);
   [[nodiscard]] bool apart(const Triangle& q, const Triangle& t, const Vec3& o, const Vec3& n,
                            double tol) const;
+  /// apart()'s tolerance for a triangle with (unnormalised) normal n: heights within 1e-6 of
+  /// its size, or within the clearance, count as on its plane (n is twice the area, so the
+  /// tolerance is a height times |n|). Without the clearance, two triangles of one flat face
+  /// overlapping 0.03 mm in the plane but 1e-7 apart in height passed as apart, and crossed in
+  /// the float file (a 20-degree knife edge, from the simulator).
+  [[nodiscard]] double on_plane_tol(const Vec3& n) const {
+    const double len = n.norm();
+    return std::max(1e-6 * std::sqrt(len), clear_) * len;
+  }
   /// Whether t crosses any listed triangle with a corner within `radius` of its bounding sphere.
   bool crosses_mesh(const Triangle& t, double radius);
   std::vector<std::uint8_t> turning_;
@@ -1543,7 +1552,7 @@ bool Builder::apart(const Triangle& q, const Triangle& t, const Vec3& o, const V
 bool Builder::crosses_fans(const Triangle& t) {
   const Vec3& o = p_[t[0]];
   const Vec3 n = (p_[t[1]] - o).cross(p_[t[2]] - o);
-  const double tol = 1e-6 * n.norm() * std::sqrt(n.norm());  // relative: n is an area
+  const double tol = on_plane_tol(n);
   for (std::uint32_t v : t)
     for (std::uint32_t c = corner_head_[v]; c != kNone; c = corners_[c].next) {
       const Triangle& q = tris_[corners_[c].tri];
@@ -1553,8 +1562,8 @@ bool Builder::crosses_fans(const Triangle& t) {
       if (shared >= 2 || apart(q, t, o, n, tol)) continue;
       const Vec3& oq = p_[q[0]];
       const Vec3 nq = (p_[q[1]] - oq).cross(p_[q[2]] - oq);
-      if (apart(t, q, oq, nq, 1e-6 * nq.norm() * std::sqrt(nq.norm()))) continue;
-      if (triangles_intersect(p_, q, t)) return true;
+      if (apart(t, q, oq, nq, on_plane_tol(nq))) continue;
+      if (triangles_intersect(p_, q, t, clear_)) return true;
     }
   return false;
 }
@@ -1576,9 +1585,9 @@ bool Builder::crosses_mesh(const Triangle& t, double radius) {
   std::sort(near_tris_.begin(), near_tris_.end());
   near_tris_.erase(std::unique(near_tris_.begin(), near_tris_.end()), near_tris_.end());
   const Vec3 n = (q1 - q0).cross(q2 - q0);
-  const double tol = 1e-6 * n.norm() * std::sqrt(n.norm());
+  const double tol = on_plane_tol(n);
   for (std::uint32_t id : near_tris_)
-    if (!apart(tris_[id], t, q0, n, tol) && triangles_intersect(p_, tris_[id], t)) return true;
+    if (!apart(tris_[id], t, q0, n, tol) && triangles_intersect(p_, tris_[id], t, clear_)) return true;
   return false;
 }
 

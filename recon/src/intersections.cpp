@@ -95,7 +95,8 @@ bool coplanar_overlap(const std::array<Eigen::Vector2d, 3>& p, const std::array<
 
 }  // namespace
 
-bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t) {
+bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t,
+                         double on_plane) {
   std::array<bool, 3> shared_p{}, shared_q{};
   int shared = 0;
   for (int i = 0; i < 3; ++i)
@@ -118,21 +119,26 @@ bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, cons
   const Vec3 n2 = (q[1] - q[0]).cross(q[2] - q[0]).normalized();
   // Signed distances to the other plane; shared corners and near-zero ones are on it.
   std::array<double, 3> dp{}, dq{};
+  // Every corner within on_plane of the other plane: one plane (only then; zeroing single
+  // heights with so wide a tolerance would put a corner on the line where two nearly parallel
+  // planes meet when it lies far from it).
+  bool near_coplanar = on_plane > eps;
   for (int k = 0; k < 3; ++k) {
     dp[k] = shared_p[k] ? 0.0 : n2.dot(p[k] - q[0]);
     dq[k] = shared_q[k] ? 0.0 : n1.dot(q[k] - p[0]);
+    near_coplanar = near_coplanar && std::abs(dp[k]) <= on_plane && std::abs(dq[k]) <= on_plane;
     if (std::abs(dp[k]) <= eps) dp[k] = 0;
     if (std::abs(dq[k]) <= eps) dq[k] = 0;
   }
   auto one_side = [](const std::array<double, 3>& d) {
     return (d[0] > 0 && d[1] > 0 && d[2] > 0) || (d[0] < 0 && d[1] < 0 && d[2] < 0);
   };
-  if (one_side(dp) || one_side(dq)) return false;
+  if (!near_coplanar && (one_side(dp) || one_side(dq))) return false;
   // Planes within 1e-6 rad of each other count as one: the line where they meet is then
   // ill-conditioned, and the tolerance above zeroes some distances but not others (two
   // triangles of a flat face meeting at a corner, their edges through it collinear, were
   // reported as crossing), so the pair is decided in the plane instead.
-  const bool coplanar = (dp[0] == 0 && dp[1] == 0 && dp[2] == 0) ||
+  const bool coplanar = near_coplanar || (dp[0] == 0 && dp[1] == 0 && dp[2] == 0) ||
                         (dq[0] == 0 && dq[1] == 0 && dq[2] == 0) ||
                         n1.cross(n2).squaredNorm() < kParallel2;
   if (coplanar) {

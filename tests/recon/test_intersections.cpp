@@ -88,6 +88,24 @@ TEST_CASE("find_self_intersections: each kind of pair", "[recon][intersections]"
     CHECK(crossing_pairs(pair_of(base, {o, y, Vec3(-1, -1, 0)})) == 0);
     CHECK(crossing_pairs(pair_of(base, {o, Vec3(1, 1, 0), Vec3(-0.5, 1, 0)})) == 1);
   }
+  SECTION("overlapping in the plane, apart in height by less than a clearance") {
+    // Two triangles of one flat face, one 1e-7 above the other, one corner 0.05 inside the other
+    // (from a simulated knife-edge scan): apart in double precision, so only the clearance the
+    // front passes (on_plane) finds them; written as float they are a fold.
+    const double h = 1e-7;
+    const Mesh m = pair_of(base, {Vec3(0.45, 0.45, h), Vec3(1.5, 0.5, h), Vec3(0.5, 1.5, h)});
+    CHECK_FALSE(scanmesh::recon::triangles_intersect(m.vertices, m.triangles[0], m.triangles[1]));
+    CHECK(scanmesh::recon::triangles_intersect(m.vertices, m.triangles[0], m.triangles[1], 1e-5));
+    CHECK(scanmesh::recon::triangles_intersect(m.vertices, m.triangles[1], m.triangles[0], 1e-5));
+    // the same pair side by side (no overlap in the plane) stays apart
+    const Mesh side = pair_of(base, {Vec3(0.55, 0.55, h), Vec3(1.5, 0.5, h), Vec3(0.5, 1.5, h)});
+    CHECK_FALSE(scanmesh::recon::triangles_intersect(side.vertices, side.triangles[0], side.triangles[1], 1e-5));
+    // A fan neighbour on a slightly bent surface, one far corner within the clearance of the
+    // other plane and one not: decided in 3D as before (taking only that corner as on the
+    // plane put it on the planes' meeting line, far from where it is: fandisk lost triangles).
+    const Mesh fan = pair_of(base, {o, Vec3(-1, 0.1, 5e-6), Vec3(-0.1, -1, 3e-5)});
+    CHECK_FALSE(scanmesh::recon::triangles_intersect(fan.vertices, fan.triangles[0], fan.triangles[1], 1e-5));
+  }
   SECTION("nearly coplanar, sharing a vertex, edges collinear through it") {
     // Two triangles of one flat face meeting only at a corner, their bottom edges on one line;
     // the second tilts by 1e-9 rad, so the tolerance zeroed one of its heights but not the

@@ -38,8 +38,12 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
                                           std::size_t max_examples = 16, std::size_t from = 0);
 
 /// The pair test itself: do triangles s and t (indices into `vertices`, neither degenerate)
-/// intersect other than along the vertices they share? Same tolerance as above.
-bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t);
+/// intersect other than along the vertices they share? Same tolerance as above; `on_plane`, when
+/// larger, is the distance within which a corner counts as lying on the other triangle's plane
+/// (the advancing front passes a few float roundings of the coordinates: two triangles of one
+/// flat face that overlap a little apart in height are a fold once written as float).
+bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t,
+                         double on_plane = 0);
 
 inline constexpr std::size_t kAllPairs = static_cast<std::size_t>(-1);
 
