@@ -452,8 +452,11 @@ class Builder {
     const double len = n.norm();
     return std::max(1e-6 * std::sqrt(len), clear_) * len;
   }
-  /// Whether t crosses any listed triangle with a corner within `radius` of its bounding sphere.
-  bool crosses_mesh(const Triangle& t, double radius);
+  /// Whether t crosses any listed triangle with a corner within `radius` of its bounding sphere;
+  /// `touching`: or comes within the clearance of one (ears closing gaps: no front-edge test
+  /// sees their new edge, and a sliver ear passed 1e-7 beside an edge of the mesh, a crossing
+  /// in the float file of a simulated line scan).
+  bool crosses_mesh(const Triangle& t, double radius, bool touching = false);
   std::vector<std::uint8_t> turning_;
   std::vector<std::uint32_t> corner_head_;  // per vertex: first node of its list, or kNone
   struct CornerNode {
@@ -980,7 +983,7 @@ void Builder::fill_small_loops() {
         if (min_angle_cos(fe.a, fe.b, c) > cos_fill_angle) continue;  // no slivers
         if (ring.size() > 3 && closes_empty_triangle(fe.a, c, fe.b)) continue;  // no tunnel
         if (opt_.crossing_guard) {  // the ear must not cross the mesh either
-          if (crosses({fe.b, fe.a, c}, opt_.radius_factor * spacing(fe.a), false)) continue;
+          if (crosses_mesh({fe.b, fe.a, c}, opt_.radius_factor * spacing(fe.a), true)) continue;
         }
         const double ang = front_turn_at_end(r);
         if (ang < best_angle) {
@@ -1568,7 +1571,7 @@ bool Builder::crosses_fans(const Triangle& t) {
   return false;
 }
 
-bool Builder::crosses_mesh(const Triangle& t, double radius) {
+bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
   const Vec3 &q0 = p_[t[0]], &q1 = p_[t[1]], &q2 = p_[t[2]];
   const detail::TriangleBounds tb(q0, q1, q2);
   near_tris_.clear();
@@ -1588,6 +1591,9 @@ bool Builder::crosses_mesh(const Triangle& t, double radius) {
   const double tol = on_plane_tol(n);
   for (std::uint32_t id : near_tris_)
     if (!apart(tris_[id], t, q0, n, tol) && triangles_intersect(p_, tris_[id], t, clear_)) return true;
+  if (touching)
+    for (std::uint32_t id : near_tris_)
+      if (triangles_touch(p_, tris_[id], t, clear_)) return true;
   return false;
 }
 

@@ -106,6 +106,27 @@ TEST_CASE("find_self_intersections: each kind of pair", "[recon][intersections]"
     const Mesh fan = pair_of(base, {o, Vec3(-1, 0.1, 5e-6), Vec3(-0.1, -1, 3e-5)});
     CHECK_FALSE(scanmesh::recon::triangles_intersect(fan.vertices, fan.triangles[0], fan.triangles[1], 1e-5));
   }
+  SECTION("touching within a clearance") {
+    using scanmesh::recon::triangles_touch;
+    // an edge passing 1e-7 above another triangle's edge, no common vertex
+    const Mesh edges = pair_of(base, {Vec3(0.5, -0.5, 1e-7), Vec3(0.5, 0.5, 1e-7), Vec3(1.5, 0, 1)});
+    CHECK_FALSE(scanmesh::recon::triangles_intersect(edges.vertices, edges.triangles[0], edges.triangles[1]));
+    CHECK(triangles_touch(edges.vertices, edges.triangles[0], edges.triangles[1], 1e-5));
+    CHECK_FALSE(triangles_touch(edges.vertices, edges.triangles[0], edges.triangles[1], 1e-8));
+    // a corner 1e-7 above the face
+    const Mesh corner = pair_of(base, {Vec3(0.2, 0.2, 1e-7), Vec3(0.3, 0.2, 1), Vec3(0.2, 0.3, 1)});
+    CHECK(triangles_touch(corner.vertices, corner.triangles[0], corner.triangles[1], 1e-5));
+    CHECK_FALSE(triangles_touch(corner.vertices, corner.triangles[0], corner.triangles[1], 1e-8));
+    // fan neighbours meet only at their shared vertex: not touching, however close to it
+    const Mesh fan = pair_of(base, {o, Vec3(-1, 0.01, 0), Vec3(-0.5, -1, 0)});
+    CHECK_FALSE(triangles_touch(fan.vertices, fan.triangles[0], fan.triangles[1], 1e-3));
+    // a neighbour's far corner near this triangle's edge is touching even beside a shared vertex
+    const Mesh beside = pair_of(base, {o, Vec3(0.5, -1e-7, 0), Vec3(0.5, -1, 0)});
+    CHECK(triangles_touch(beside.vertices, beside.triangles[0], beside.triangles[1], 1e-5));
+    // across a shared edge: triangles_intersect's case (folds), never touching
+    const Mesh hinge = pair_of(base, {o, x, Vec3(0.5, 1e-7, 1e-7)});
+    CHECK_FALSE(triangles_touch(hinge.vertices, hinge.triangles[0], hinge.triangles[1], 1e-5));
+  }
   SECTION("nearly coplanar, sharing a vertex, edges collinear through it") {
     // Two triangles of one flat face meeting only at a corner, their bottom edges on one line;
     // the second tilts by 1e-9 rad, so the tolerance zeroed one of its heights but not the

@@ -45,6 +45,14 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
 bool triangles_intersect(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t,
                          double on_plane = 0);
 
+/// Whether triangles s and t come within `clearance` of each other other than at the vertex they
+/// share: a corner (not shared) that near the other triangle, or two edges without a common end
+/// point that near each other. Triangles sharing an edge are left to triangles_intersect. Used
+/// with a few float roundings of the coordinates as the clearance: a pair this close may cross
+/// once written as float (STL, PLY).
+bool triangles_touch(std::span<const Vec3> vertices, const Triangle& s, const Triangle& t,
+                     double clearance);
+
 inline constexpr std::size_t kAllPairs = static_cast<std::size_t>(-1);
 
 /// Removes every component (triangles joined through shared vertices) that crosses another
