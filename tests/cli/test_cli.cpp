@@ -70,6 +70,28 @@ void check_manifold_oriented(const json& j) {
   CHECK(j.at("orientation_consistent") == true);
 }
 
+/// Makes a cloud with `make` (a `generate` or `simulate` command line, `-o` appended), meshes it
+/// and checks what every scan must give: exit 0, manifold, consistently oriented, one component,
+/// no crossing triangles in the written file. Returns reconstruct's JSON.
+json mesh_cleanly(const TempDir& dir, std::vector<std::string> make) {
+  const auto cloud = dir / "cloud.xyz";
+  const auto mesh = dir / "mesh.ply";
+  make.insert(make.end(), {"-o", cloud.string()});
+  auto r = run(dir, make);
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  r = run(dir, {"reconstruct", cloud.string(), "-o", mesh.string(), "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  check_manifold_oriented(j);
+  CHECK(j.at("components") == 1);
+  r = run(dir, {"inspect", mesh.string(), "--json"});
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("self_intersections") == 0);
+  return j;
+}
+
 /// Files in `dir` whose name starts with `prefix`.
 std::vector<std::string> files_starting_with(const fs::path& dir, const std::string& prefix) {
   std::vector<std::string> found;
@@ -627,23 +649,10 @@ TEST_CASE("the demo's scan of the container reconstructs to a closed manifold", 
 // reduced points: the smallest scans of it that showed both problems.
 TEST_CASE("a simulated multi-view line scan of the container meshes without crossings", "[cli][sim]") {
   TempDir dir;
-  const auto cloud = dir / "views.xyz";
-  const auto mesh = dir / "views.ply";
-  auto r = run(dir, {"simulate", "--part", "container", "--sensor", "line", "--path", "views",
-                     "--views", "6", "--spacing", "0.5", "--profile-points", "100", "-o",
-                     cloud.string()});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  r = run(dir, {"reconstruct", cloud.string(), "-o", mesh.string(), "--json"});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  const json j = json_of(r);
-  check_manifold_oriented(j);
-  CHECK(j.at("components") == 1);
+  const json j = mesh_cleanly(dir, {"simulate", "--part", "container", "--sensor", "line", "--path",
+                                    "views", "--views", "6", "--spacing", "0.5",
+                                    "--profile-points", "100"});
   CHECK(j.at("vertices").get<double>() >= 0.99 * j.at("reduced_points").get<double>());
-  r = run(dir, {"inspect", mesh.string(), "--json"});
-  REQUIRE(r.status == 0);
-  CHECK(json_of(r).at("self_intersections") == 0);
 }
 
 TEST_CASE("a knife edge meshes without crossings", "[cli][sim]") {
@@ -661,21 +670,8 @@ TEST_CASE("a knife edge meshes without crossings", "[cli][sim]") {
       << "v 0 20 " << -h << "\nv 0 20 " << h << "\nv 30 20 0\n"
       << "f 1 3 2\nf 4 5 6\nf 1 2 5\nf 1 5 4\nf 2 3 6\nf 2 6 5\nf 1 4 6\nf 1 6 3\n";
   }
-  const auto cloud = dir / "wedge.xyz";
-  const auto mesh = dir / "wedge.ply";
-  auto r = run(dir, {"generate", "--mesh-in", obj.string(), "--spacing", "0.5", "-o", cloud.string()});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  r = run(dir, {"reconstruct", cloud.string(), "-o", mesh.string(), "--json"});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  const json j = json_of(r);
-  check_manifold_oriented(j);
-  CHECK(j.at("components") == 1);
+  const json j = mesh_cleanly(dir, {"generate", "--mesh-in", obj.string(), "--spacing", "0.5"});
   CHECK(j.at("vertices").get<double>() >= 0.99 * j.at("reduced_points").get<double>());
-  r = run(dir, {"inspect", mesh.string(), "--json"});
-  REQUIRE(r.status == 0);
-  CHECK(json_of(r).at("self_intersections") == 0);
 }
 
 TEST_CASE("a simulated line scan with dropouts meshes without crossings", "[cli][sim]") {
@@ -683,23 +679,10 @@ TEST_CASE("a simulated line scan with dropouts meshes without crossings", "[cli]
   // a sliver whose new edge passed 1e-7 beside an edge of the mesh (2 crossing pairs in the
   // float file).
   TempDir dir;
-  const auto cloud = dir / "cyl.xyz";
-  const auto mesh = dir / "cyl.ply";
-  auto r = run(dir, {"simulate", "--part", "cylinder", "--sensor", "line", "--path", "views",
-                     "--views", "6", "--spacing", "0.4", "--profile-points", "120", "--dropout",
-                     "0.2", "-o", cloud.string()});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  r = run(dir, {"reconstruct", cloud.string(), "-o", mesh.string(), "--json"});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  const json j = json_of(r);
-  check_manifold_oriented(j);
-  CHECK(j.at("components") == 1);
+  const json j = mesh_cleanly(dir, {"simulate", "--part", "cylinder", "--sensor", "line", "--path",
+                                    "views", "--views", "6", "--spacing", "0.4",
+                                    "--profile-points", "120", "--dropout", "0.2"});
   CHECK(j.at("genus") == 0);
-  r = run(dir, {"inspect", mesh.string(), "--json"});
-  REQUIRE(r.status == 0);
-  CHECK(json_of(r).at("self_intersections") == 0);
 }
 
 TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only on request",
