@@ -70,6 +70,18 @@ void check_manifold_oriented(const json& j) {
   CHECK(j.at("orientation_consistent") == true);
 }
 
+/// Reconstructs `cloud` into `mesh` and checks exit 0, manifold, consistently oriented, one
+/// component. Returns reconstruct's JSON.
+json reconstruct_one_piece(const TempDir& dir, const fs::path& cloud, const fs::path& mesh) {
+  const auto r = run(dir, {"reconstruct", cloud.string(), "-o", mesh.string(), "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  check_manifold_oriented(j);
+  CHECK(j.at("components") == 1);
+  return j;
+}
+
 /// Makes a cloud with `make` (a `generate` or `simulate` command line, `-o` appended), meshes it
 /// and checks what every scan must give: exit 0, manifold, consistently oriented, one component,
 /// no crossing triangles in the written file. Returns reconstruct's JSON.
@@ -80,12 +92,7 @@ json mesh_cleanly(const TempDir& dir, std::vector<std::string> make) {
   auto r = run(dir, make);
   INFO(describe(r));
   REQUIRE(r.status == 0);
-  r = run(dir, {"reconstruct", cloud.string(), "-o", mesh.string(), "--json"});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  const json j = json_of(r);
-  check_manifold_oriented(j);
-  CHECK(j.at("components") == 1);
+  const json j = reconstruct_one_piece(dir, cloud, mesh);
   r = run(dir, {"inspect", mesh.string(), "--json"});
   REQUIRE(r.status == 0);
   CHECK(json_of(r).at("self_intersections") == 0);
@@ -623,13 +630,8 @@ TEST_CASE("the demo's scan of the container reconstructs to a closed manifold", 
   auto r = run(dir, {"generate", "--part", "container", "--noise", "0.02", "-o", cloud.string(),
                      "--mesh", ref.string()});
   REQUIRE(r.status == 0);
-  r = run(dir, {"reconstruct", cloud.string(), "-o", mesh.string(), "--json"});
-  INFO(describe(r));
-  REQUIRE(r.status == 0);
-  const json j = json_of(r);
-  check_manifold_oriented(j);
+  const json j = reconstruct_one_piece(dir, cloud, mesh);
   CHECK(j.at("boundary_loops") == 0);
-  CHECK(j.at("components") == 1);
   CHECK(j.at("genus") == 2);  // the two through-holes, and no tunnel at the sharp edges
   r = run(dir, {"deviation", mesh.string(), "--ref", ref.string(), "--json"});
   REQUIRE(r.status == 0);
