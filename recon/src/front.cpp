@@ -1577,13 +1577,19 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
   near_tris_.clear();
   const std::uint32_t* order = grid_.order().data();
   // Every point of a triangle lies within 0.58 of its longest edge of its nearest corner, and
-  // edges are at most about `radius` long.
-  grid_.for_each_range_within(tb.centre, tb.reach + 0.6 * radius, [&](std::uint32_t first, std::uint32_t last) {
-    for (std::uint32_t s = first; s < last; ++s)
-      for (std::uint32_t c = corner_head_[order[s]]; c != kNone; c = corners_[c].next) {
+  // edges are at most about `radius` long: a triangle that meets t has a corner within `near`
+  // of t's centre. Only those corners' lists are walked (the cells hold about five times as
+  // many points as the ball).
+  const double near = tb.reach + 0.6 * radius, near2 = near * near;
+  grid_.for_each_range_within(tb.centre, near, [&](std::uint32_t first, std::uint32_t last) {
+    for (std::uint32_t s = first; s < last; ++s) {
+      const std::uint32_t v = order[s];
+      if (corner_head_[v] == kNone || (p_[v] - tb.centre).squaredNorm() > near2) continue;
+      for (std::uint32_t c = corner_head_[v]; c != kNone; c = corners_[c].next) {
         const Triangle& q = tris_[corners_[c].tri];
         if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(corners_[c].tri);
       }
+    }
   });
   std::sort(near_tris_.begin(), near_tris_.end());
   near_tris_.erase(std::unique(near_tris_.begin(), near_tris_.end()), near_tris_.end());
