@@ -5,6 +5,7 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/intersections.hpp"
 
+#include "closest_point.hpp"
 #include "triangle_components.hpp"
 
 #include <algorithm>
@@ -94,29 +95,6 @@ bool coplanar_overlap(const std::array<Eigen::Vector2d, 3>& p, const std::array<
 }
 
 
-/// Squared distance from x to triangle (a, b, c): the closest point by Voronoi regions of the
-/// corners, edges and face (Ericson, Real-Time Collision Detection, 5.1.5).
-double point_triangle_d2(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a, ax = x - a;
-  const double d1 = ab.dot(ax), d2 = ac.dot(ax);
-  if (d1 <= 0 && d2 <= 0) return ax.squaredNorm();
-  const Vec3 bx = x - b;
-  const double d3 = ab.dot(bx), d4 = ac.dot(bx);
-  if (d3 >= 0 && d4 <= d3) return bx.squaredNorm();
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (x - (a + (d1 / (d1 - d3)) * ab)).squaredNorm();
-  const Vec3 cx = x - c;
-  const double d5 = ab.dot(cx), d6 = ac.dot(cx);
-  if (d6 >= 0 && d5 <= d6) return cx.squaredNorm();
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (x - (a + (d2 / (d2 - d6)) * ac)).squaredNorm();
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return (x - (b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b))).squaredNorm();
-  const double den = 1 / (va + vb + vc);
-  return (x - (a + ab * (vb * den) + ac * (vc * den))).squaredNorm();
-}
-
 /// Squared distance between segments p0-p1 and q0-q1 (Ericson 5.1.9, clamped parameters).
 double segment_segment_d2(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
   const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
@@ -154,14 +132,14 @@ bool triangles_touch(std::span<const Vec3> vertices, const Triangle& s, const Tr
   if (shared >= 2) return false;  // across a shared edge: only a fold, triangles_intersect's case
   const double c2 = clearance * clearance;
   auto in = [](std::uint32_t v, const Triangle& x) { return v == x[0] || v == x[1] || v == x[2]; };
+  auto d2 = [&](std::uint32_t v, const Triangle& x) {
+    return detail::closest_on_triangle(vertices[v], vertices[x[0]], vertices[x[1]], vertices[x[2]])
+        .dist_sq;
+  };
   // A corner of one (not shared) near the other triangle.
   for (int k = 0; k < 3; ++k) {
-    if (!in(s[k], t) &&
-        point_triangle_d2(vertices[s[k]], vertices[t[0]], vertices[t[1]], vertices[t[2]]) <= c2)
-      return true;
-    if (!in(t[k], s) &&
-        point_triangle_d2(vertices[t[k]], vertices[s[0]], vertices[s[1]], vertices[s[2]]) <= c2)
-      return true;
+    if (!in(s[k], t) && d2(s[k], t) <= c2) return true;
+    if (!in(t[k], s) && d2(t[k], s) <= c2) return true;
   }
   // Two edges without a common end point near each other.
   for (int i = 0; i < 3; ++i) {
