@@ -424,6 +424,8 @@ class Builder {
   void mark_turning_points();
   void push_triangle(const Triangle& t);
   void mark_bent(const Triangle& t);
+  /// Marks the points within r of c that are not turning points as near-turning (2).
+  void mark_near_turning(const Vec3& c, double r);
   void link_corner(std::uint32_t v, std::uint32_t tri);
   void release_corners(std::uint32_t v);
   void rebuild_corner_lists();
@@ -1450,18 +1452,8 @@ void Builder::mark_turning_points() {
   // point holds (a bevel across a sharp rim whose other face is unsampled: the cap beside it
   // has no turning point of its own, but the bevel's wall corner is one). Their triangles get
   // the test against everything near too; only turning points keep their lists.
-  for (std::uint32_t v = 0; v < n; ++v) {
-    if (turning_[v] != 1) continue;
-    const double r = opt_.radius_factor * 1.5 * spacing(v);
-    const double r2 = r * r;
-    const Vec3& pv = p_[v];
-    grid_.for_each_range_within(pv, r, [&](std::uint32_t first, std::uint32_t last) {
-      for (std::uint32_t s = first; s < last; ++s) {
-        const std::uint32_t u = order[s];
-        if (turning_[u] == 0 && (p_[u] - pv).squaredNorm() <= r2) turning_[u] = 2;
-      }
-    });
-  }
+  for (std::uint32_t v = 0; v < n; ++v)
+    if (turning_[v] == 1) mark_near_turning(p_[v], opt_.radius_factor * 1.5 * spacing(v));
   for (std::uint8_t t : turning_) res_.turning_points += t == 1 ? 1 : 0;
 }
 
@@ -1516,12 +1508,16 @@ void Builder::mark_bent(const Triangle& t) {
   const Vec3 c = (p_[t[0]] + p_[t[1]] + p_[t[2]]) / 3.0;
   const double reach = std::sqrt(std::max({(p_[t[0]] - c).squaredNorm(), (p_[t[1]] - c).squaredNorm(),
                                            (p_[t[2]] - c).squaredNorm()})) + r;
-  const double reach2 = reach * reach;
+  mark_near_turning(c, reach);
+}
+
+void Builder::mark_near_turning(const Vec3& c, double r) {
+  const double r2 = r * r;
   const std::uint32_t* order = grid_.order().data();
-  grid_.for_each_range_within(c, reach, [&](std::uint32_t first, std::uint32_t last) {
+  grid_.for_each_range_within(c, r, [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s) {
       const std::uint32_t u = order[s];
-      if (turning_[u] == 0 && (p_[u] - c).squaredNorm() <= reach2) turning_[u] = 2;
+      if (turning_[u] == 0 && (p_[u] - c).squaredNorm() <= r2) turning_[u] = 2;
     }
   });
 }
