@@ -194,6 +194,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["seeds"] = res.seeds;
     j["relaxed_triangles"] = res.relaxed_triangles;
     j["filled_gaps"] = res.filled_gaps;
+    j["closed_gaps"] = res.gaps.filled;
     j["removed_fan_triangles"] = res.removed_fan_triangles;
     j["inserted_points"] = res.refine.inserted;
     j["inserted_by_edge_split"] = res.refine.edge_splits;
@@ -221,6 +222,9 @@ int run_reconstruct(const ReconstructArgs& args) {
               << "components       " << rep.components << "\n"
               << "genus            " << rep.genus << "\n"
               << "inserted points  " << res.refine.inserted << " (left out by the front)\n";
+    if (res.gaps.filled > 0)
+      std::cout << "closed gaps      " << res.gaps.filled
+                << " (small loops the front left, closed with their own vertices)\n";
     if (args.fill_holes > 0)
       std::cout << "filled holes     " << res.fill.filled << " (" << res.fill.triangles
                 << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept

@@ -15,6 +15,8 @@
 #include <limits>
 #include <numbers>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <unordered_map>
 #include <utility>
 
@@ -463,7 +465,12 @@ std::vector<std::string> FillOptions::validate() const {
   return errors;
 }
 
-FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
+FillStats fill_holes(Mesh& mesh, const FillOptions& options,
+                     std::span<const float> vertex_spacing) {
+  if (options.max_perimeter_spacings > 0 && vertex_spacing.size() < mesh.vertices.size())
+    throw std::invalid_argument("fill_holes: a perimeter limit needs the spacing of every vertex (" +
+                                std::to_string(vertex_spacing.size()) + " for " +
+                                std::to_string(mesh.vertices.size()) + " vertices)");
   FillStats stats;
   if (mesh.triangles.empty()) return stats;
   const MeshReport report = analyze(mesh, true);
@@ -473,10 +480,27 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
     return stats;
   }
   const std::size_t limit = std::min(options.max_edges, FillOptions::kLimit);
+  // Loops too long for their local spacing are holes or borders, not sampling gaps.
+  std::vector<char> too_long(report.loops.size(), 0);
+  if (options.max_perimeter_spacings > 0) {
+    for (std::size_t li = 0; li < report.loops.size(); ++li) {
+      const std::vector<std::uint32_t>& q = report.loops[li].vertices;
+      if (!report.loops[li].closed || q.size() < 3 || q.size() > limit) continue;
+      double perimeter = 0, spacing = 0;
+      for (std::size_t i = 0; i < q.size(); ++i) {
+        perimeter += (mesh.vertices[q[(i + 1) % q.size()]] - mesh.vertices[q[i]]).norm();
+        spacing += vertex_spacing[q[i]];
+      }
+      too_long[li] = perimeter * static_cast<double>(q.size()) >
+                     options.max_perimeter_spacings * spacing;
+    }
+  }
   std::vector<char> on_small_loop(mesh.vertices.size(), 0);
-  for (const BoundaryLoop& loop : report.loops)
-    if (loop.closed && loop.vertices.size() >= 3 && loop.vertices.size() <= limit)
+  for (std::size_t li = 0; li < report.loops.size(); ++li) {
+    const BoundaryLoop& loop = report.loops[li];
+    if (loop.closed && loop.vertices.size() >= 3 && loop.vertices.size() <= limit && !too_long[li])
       for (std::uint32_t v : loop.vertices) on_small_loop[v] = 1;
+  }
   // The edges at those loops' vertices (a chord must not repeat one) and the triangle on each
   // boundary edge (directed as that triangle runs along it).
   std::vector<std::uint64_t> edges;
@@ -514,7 +538,8 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options) {
   // Closes loop li at its level, appending the patch; false when the loop is kept open.
   auto fill_loop = [&](std::size_t li) {
     const std::vector<std::uint32_t>& q = report.loops[li].vertices;
-    if (!report.loops[li].closed || q.size() < 3 || q.size() > limit || level[li] == kOpen)
+    if (!report.loops[li].closed || q.size() < 3 || q.size() > limit || too_long[li] ||
+        level[li] == kOpen)
       return false;
     // The rim of a lone triangle: its patch would be the same triangle turned over. Any
     // triangle on these three vertices has the boundary edge q0 -> q1, so one look-up tells.

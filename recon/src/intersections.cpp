@@ -235,25 +235,44 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
   const std::size_t nv = vertices.size();
   std::vector<std::uint32_t> valid;
   std::vector<Box> box(nt);
-  double edge_sum = 0;
-  Vec3 origin = Vec3::Constant(std::numeric_limits<double>::infinity());
-  for (std::uint32_t i = 0; i < nt; ++i) {
-    const Triangle& t = triangles[i];
-    if (t[0] >= nv || t[1] >= nv || t[2] >= nv || t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
-      continue;
-    const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
-    if (!(a.allFinite() && b.allFinite() && c.allFinite())) continue;
-    if ((b - a).cross(c - a).squaredNorm() == 0) continue;
-    box[i] = {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)};
-    origin = origin.cwiseMin(box[i].lo);
-    edge_sum += (b - a).norm() + (c - b).norm() + (a - c).norm();
-    valid.push_back(i);
+  // With `from`, an older triangle outside the box of all new ones cannot meet any of them.
+  Box added{Vec3::Constant(std::numeric_limits<double>::infinity()),
+            Vec3::Constant(-std::numeric_limits<double>::infinity())};
+  for (const bool is_new : {true, false}) {
+    if (!is_new && from == 0) break;
+    for (std::uint32_t i = 0; i < nt; ++i) {
+      if (from > 0 && (i >= from) != is_new) continue;
+      const Triangle& t = triangles[i];
+      if (t[0] >= nv || t[1] >= nv || t[2] >= nv || t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+        continue;
+      const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
+      if (!(a.allFinite() && b.allFinite() && c.allFinite())) continue;
+      box[i] = {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)};
+      if (from > 0 && !is_new && !box[i].overlaps(added)) continue;
+      if ((b - a).cross(c - a).squaredNorm() == 0) continue;
+      if (from > 0 && is_new) added = {added.lo.cwiseMin(box[i].lo), added.hi.cwiseMax(box[i].hi)};
+      valid.push_back(i);
+    }
   }
   if (valid.size() < 2) return out;
+  // The grid: from the new triangles alone when there are any (nothing else is entered beyond
+  // their cells), else from all.
+  double edge_sum = 0;
+  std::size_t sized = 0;
+  Vec3 origin = Vec3::Constant(std::numeric_limits<double>::infinity());
+  for (const std::uint32_t i : valid) {
+    origin = origin.cwiseMin(box[i].lo);
+    if (from > 0 && i < from) continue;
+    const Triangle& t = triangles[i];
+    const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
+    edge_sum += (b - a).norm() + (c - b).norm() + (a - c).norm();
+    ++sized;
+  }
+  if (sized == 0) return out;  // nothing new to test
   // Cells two mean edges wide, at most 2^20 a side (21 bits a coordinate in the key).
   Vec3 extent = Vec3::Zero();
   for (std::uint32_t i : valid) extent = extent.cwiseMax(box[i].hi - origin);
-  double cell = 2 * edge_sum / (3.0 * static_cast<double>(valid.size()));
+  double cell = 2 * edge_sum / (3.0 * static_cast<double>(sized));
   cell = std::max(cell, extent.maxCoeff() / double(1 << 20));
   if (!(cell > 0)) return out;
   // Clamped, NaN to 0: an extent that overflows (coordinates near the double range) must not

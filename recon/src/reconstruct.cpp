@@ -13,6 +13,51 @@
 namespace scanmesh::recon {
 namespace {
 
+/// Whether the mesh has a boundary loop of at most `max_edges` edges whose perimeter is at most
+/// `factor` times the mean spacing of its vertices (a sampling gap for the "gaps" stage). Only
+/// the triangles with two boundary vertices (the front's final states) are looked at, so a mesh
+/// without such a loop costs one pass over the triangles, not a topology analysis.
+bool has_sampling_gap(std::span<const Vec3> points, std::span<const Triangle> triangles,
+                      std::span<const VertexState> state, std::span<const float> spacing,
+                      std::size_t max_edges, double factor) {
+  auto on_boundary = [&](std::uint32_t v) { return state[v] == VertexState::kBoundary; };
+  std::vector<std::uint64_t> half;  // half-edges between boundary vertices: (from << 32) | to
+  for (const Triangle& t : triangles)
+    for (int k = 0; k < 3; ++k)
+      if (on_boundary(t[k]) && on_boundary(t[(k + 1) % 3]))
+        half.push_back((std::uint64_t{t[k]} << 32) | t[(k + 1) % 3]);
+  std::sort(half.begin(), half.end());
+  auto has = [&](std::uint32_t u, std::uint32_t v) {
+    return std::binary_search(half.begin(), half.end(), (std::uint64_t{u} << 32) | v);
+  };
+  // The boundary half-edges (no twin), by their start; a vertex-manifold mesh has one per
+  // boundary vertex (more only where two holes touch: the walk then just follows the first).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> next;
+  for (const std::uint64_t h : half) {
+    const auto u = static_cast<std::uint32_t>(h >> 32), v = static_cast<std::uint32_t>(h);
+    if (!has(v, u)) next.emplace_back(u, v);
+  }
+  auto successor = [&](std::uint32_t u) {
+    const auto it = std::lower_bound(next.begin(), next.end(), std::make_pair(u, std::uint32_t{0}));
+    return it != next.end() && it->first == u ? it->second : u;
+  };
+  for (const auto& [start, first] : next) {
+    double perimeter = (points[first] - points[start]).norm(), spacing_sum = spacing[start];
+    std::size_t edges = 1;
+    std::uint32_t u = first;
+    while (u != start && edges < max_edges) {
+      const std::uint32_t v = successor(u);
+      if (v == u) break;  // not a closed walk
+      perimeter += (points[v] - points[u]).norm();
+      spacing_sum += spacing[u];
+      ++edges;
+      u = v;
+    }
+    if (u == start && perimeter * static_cast<double>(edges) <= factor * spacing_sum) return true;
+  }
+  return false;
+}
+
 void check_input(std::span<const Vec3> points) {
   if (points.empty()) throw GeometryError("no points: the input is empty");
   std::size_t bad = 0, first_bad = 0;
@@ -114,6 +159,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   std::vector<std::uint32_t>().swap(kept);  // memory: each stage frees what it no longer needs
 
   FrontResult fr;
+  std::vector<float> spacing;  // of each reduced point, as the front saw it: for closing gaps
   {
     stage("normals");
     // Spatially sort the reduced points (grid order) so the front walks memory coherently.
@@ -136,11 +182,12 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     // Re-grid with the measured local spacing so that one ring of cells covers the front's scan
     // radius (1.5 x radius_factor spacings plus half an edge): 9 rows a query, where cells half
     // that size made the row look-ups cost more than the extra points the larger cells bring.
+    double median = 0;
     {
       std::vector<float> sp = frames.spacing;
       std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2),
                        sp.end());
-      const double median = sp[sp.size() / 2];
+      median = sp[sp.size() / 2];
       if (median > 0)
         grid.build(reduced, (options.front.radius_factor * 1.5 + 0.6) * median);
     }
@@ -151,6 +198,13 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
 
     stage("refine");
     res.refine = insert_unused_points(reduced, frames, grid, fr, options.refine);
+    if (options.close_gaps) {
+      // Capped like the front's (kMaxSparsity): the same measure as its own gap closing.
+      spacing = frames.spacing;
+      const auto cap = static_cast<float>(2.5 * median);
+      if (median > 0)
+        for (float& s : spacing) s = std::min(s, cap);
+    }
   }  // frames and grid are freed here, before the output copy
 
   stage("output");
@@ -164,6 +218,11 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.mesh.vertices.resize(used);
   for (std::size_t v = 0; v < reduced.size(); ++v)
     if (remap[v] != 0xffffffffu) res.mesh.vertices[remap[v]] = reduced[v];
+  const bool gaps = options.close_gaps && options.front.fill_max_edges > 0 &&
+                    has_sampling_gap(reduced, fr.triangles, fr.state, spacing,
+                                     options.front.fill_max_edges,
+                                     options.front.fill_perimeter_factor);
+  if (!gaps) std::vector<float>().swap(spacing);
   res.mesh.triangles = std::move(fr.triangles);
   for (Triangle& t : res.mesh.triangles)
     for (std::uint32_t& v : t) v = remap[v];
@@ -178,6 +237,18 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.seed_attempts = fr.seed_attempts;
   res.turning_points = fr.turning_points;
   res.dropped_components = fr.dropped_components;
+  if (gaps) {
+    stage("gaps");
+    std::vector<float> vertex_spacing(used);
+    for (std::size_t v = 0; v < reduced.size(); ++v)
+      if (remap[v] != 0xffffffffu) vertex_spacing[remap[v]] = spacing[v];
+    std::vector<float>().swap(spacing);
+    FillOptions gaps;
+    gaps.max_edges = options.front.fill_max_edges;
+    gaps.max_perimeter_spacings = options.front.fill_perimeter_factor;
+    gaps.refine = false;
+    res.gaps = fill_holes(res.mesh, gaps, vertex_spacing);
+  }
   if (options.fill.max_edges > 0) {
     stage("fill");
     res.fill = fill_holes(res.mesh, options.fill);

@@ -8,6 +8,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
 #include <vector>
 
 #include "scanmesh/recon/analysis.hpp"
@@ -72,6 +73,46 @@ TEST_CASE("fill_holes closes two tetrahedron faces with the other two, never rep
   CHECK(r.genus == 0);
   CHECK(r.edges == 6);
   CHECK(r.signed_volume == Approx(1.0 / 6.0));
+}
+
+TEST_CASE("fill_holes with a perimeter limit closes a loop only when it is short for the "
+          "spacing of its vertices",
+          "[recon][fill]") {
+  // The tetrahedron's open half again: its loop a-b-c-d has a perimeter of 2 + 2 sqrt(2) = 4.83.
+  auto half_tetrahedron = [] {
+    Mesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)};
+    m.triangles = {Triangle{0, 1, 3}, Triangle{0, 3, 2}};
+    return m;
+  };
+  FillOptions opt;
+  opt.max_edges = 4;
+  opt.refine = false;
+  opt.max_perimeter_spacings = 10;
+  {
+    Mesh m = half_tetrahedron();
+    const std::vector<float> fine(4, 0.4f);  // limit 4: a hole, kept
+    const auto stats = fill_holes(m, opt, fine);
+    CHECK(stats.filled == 0);
+    CHECK(stats.kept == 1);
+    CHECK(stats.crossing == 0);
+    CHECK(m.triangles.size() == 2);
+  }
+  {
+    Mesh m = half_tetrahedron();
+    const std::vector<float> coarse(4, 0.5f);  // limit 5: a sampling gap, closed
+    const auto stats = fill_holes(m, opt, coarse);
+    CHECK(stats.filled == 1);
+    CHECK(analyze(m).boundary_loops == 0);
+  }
+  {
+    Mesh m = half_tetrahedron();
+    const std::vector<float> mixed{0.2f, 0.2f, 0.2f, 1.4f};  // the mean decides: 0.5
+    CHECK(fill_holes(m, opt, mixed).filled == 1);
+  }
+  Mesh m = half_tetrahedron();
+  CHECK_THROWS_AS(fill_holes(m, opt), std::invalid_argument);  // the limit needs the spacing
+  CHECK(m.triangles.size() == 2);
 }
 
 TEST_CASE("fill_holes never repeats an edge the mesh has, whatever the vertex numbering",

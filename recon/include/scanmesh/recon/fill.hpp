@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,12 +25,16 @@ struct FillOptions {
   /// held), so that it continues the curvature of the surface. False: the patch is the loop's
   /// own vertices only (flat triangles, no new vertex).
   bool refine = true;
+  /// When positive, a loop is closed only if its perimeter is at most this many times the mean
+  /// spacing of its vertices (fill_holes' `vertex_spacing`): a sampling gap rather than a hole
+  /// of the part or a scan's border. 0: loops are chosen by their edge count alone.
+  double max_perimeter_spacings = 0;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
 struct FillStats {
   std::size_t filled = 0;     ///< loops closed
-  std::size_t kept = 0;       ///< loops left open (larger than max_edges, or not fillable)
+  std::size_t kept = 0;       ///< loops left open (too many edges, too long, or not fillable)
   std::size_t crossing = 0;   ///< of those, loops whose every patch would cross the mesh
   std::size_t triangles = 0;  ///< triangles added
   std::size_t vertices = 0;   ///< vertices added (inside the patches, by the refinement)
@@ -42,6 +47,9 @@ struct FillStats {
 /// the mesh, itself or another patch: such a loop is filled flatter (unfaired, then without new
 /// vertices) or, failing that, left open and counted as kept. New vertices (of
 /// the refinement) are appended to mesh.vertices; existing vertices never move. A mesh with non-manifold edges or vertices is left as it is (every loop kept).
-FillStats fill_holes(Mesh& mesh, const FillOptions& options);
+/// `vertex_spacing` (the sampling spacing around each vertex, one per vertex) is read only when
+/// options.max_perimeter_spacings > 0, and must then cover every vertex (std::invalid_argument).
+FillStats fill_holes(Mesh& mesh, const FillOptions& options,
+                     std::span<const float> vertex_spacing = {});
 
 }  // namespace scanmesh::recon

@@ -43,12 +43,12 @@ struct FrontOptions {
   /// Boundary loops with at most this many edges and a perimeter of at most
   /// `fill_perimeter_factor` local spacings are sampling gaps, closed at the end.
   std::size_t fill_max_edges = 8;
+  double fill_perimeter_factor = 10.0;
   /// The new triangle must not cross or overlap the mesh (rule 3 of the front): each one is
   /// tested exactly against the triangles around its corners, and near turning points (the
   /// surface turns back within reach: thin walls, sharp edges) or where the front-edge tests
   /// cannot see the front near it, against every triangle near it. Off only for comparison.
   bool crossing_guard = true;
-  double fill_perimeter_factor = 10.0;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 

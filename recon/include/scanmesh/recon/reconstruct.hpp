@@ -32,6 +32,11 @@ struct ReconstructOptions {
   FrontOptions front;
   NormalOptions normals;
   RefineOptions refine;
+  /// Sampling gaps the front and the insertion left (loops of at most front.fill_max_edges
+  /// edges and front.fill_perimeter_factor local spacings) are closed at the end with their own
+  /// vertices (the minimum-weight patch of fill.hpp, never crossing the mesh). Off only for
+  /// comparison.
+  bool close_gaps = true;
   /// Off by default: real holes stay open. On request, small loops are closed at the end.
   FillOptions fill;
   /// Reports every bad field at once (empty when valid).
@@ -47,6 +52,7 @@ struct ReconstructResult {
   std::vector<Vec3> outliers;      ///< reduced points the front never reached
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
   RefineStats refine;  ///< points the front left out that were inserted afterwards
+  FillStats gaps;      ///< sampling gaps closed at the end (options.close_gaps)
   FillStats fill;      ///< holes closed on request (options.fill)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
   std::size_t turning_points = 0;  ///< points the crossing guard tests against everything near
@@ -55,7 +61,8 @@ struct ReconstructResult {
 };
 
 /// Called with the name of each stage when it starts ("reduce", "normals", "front", "refine",
-/// "output", and "fill" when holes are to be closed) and with "done" at the end.
+/// "output", "gaps" when sampling gaps are closed, and "fill" when holes are to be closed) and
+/// with "done" at the end.
 using StageObserver = std::function<void(std::string_view stage)>;
 
 /// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,
