@@ -112,6 +112,17 @@ const std::vector<std::string> kMergedBunnyScans{
     "bunny/data/chin.ply",   "bunny/data/ear_back.ply", "bunny/data/top2.ply",
     "bunny/data/top3.ply"};
 
+/// What closing loops with patches keeps: the genus and the components, and a manifold,
+/// consistently oriented mesh without duplicate triangles.
+void check_patches_keep_topology(const recon::MeshReport& before, const recon::MeshReport& after) {
+  CHECK(after.genus == before.genus);
+  CHECK(after.components == before.components);
+  CHECK(after.non_manifold_edges == 0);
+  CHECK(after.non_manifold_vertices == 0);
+  CHECK(after.orientation_consistent);
+  CHECK(after.duplicate_triangles == 0);
+}
+
 void run_case(const Case& c) {
   const auto loaded = load_points(c.inputs, c.conf, c.name);
   if (!loaded) return;
@@ -273,12 +284,7 @@ TEST_CASE("real scan: sampling gaps left after the front are closed with their o
     CHECK(open.gaps.filled == 0);
     CHECK(closed.gaps.filled >= 1);
     CHECK(after.boundary_loops + closed.gaps.filled == before.boundary_loops);
-    CHECK(after.genus == before.genus);
-    CHECK(after.components == before.components);
-    CHECK(after.non_manifold_edges == 0);
-    CHECK(after.non_manifold_vertices == 0);
-    CHECK(after.orientation_consistent);
-    CHECK(after.duplicate_triangles == 0);
+    check_patches_keep_topology(before, after);
     // The same vertices (measured points only) and the same triangles, plus the patches.
     CHECK(closed.gaps.vertices == 0);
     REQUIRE(closed.mesh.vertices == open.mesh.vertices);
@@ -401,12 +407,7 @@ TEST_CASE("real scan: on request the bunny's base holes and the casting's loops 
     const std::size_t mesh_triangles = open.mesh.triangles.size();
     INFO("crossing pairs in the output: " << recon::find_self_intersections(closed.mesh).pairs);
     CHECK(recon::find_self_intersections(closed.mesh, 0, mesh_triangles).pairs == 0);
-    CHECK(after.genus == before.genus);
-    CHECK(after.components == before.components);
-    CHECK(after.non_manifold_edges == 0);
-    CHECK(after.non_manifold_vertices == 0);
-    CHECK(after.orientation_consistent);
-    CHECK(after.duplicate_triangles == 0);
+    check_patches_keep_topology(before, after);
     CHECK(closed.mesh.vertices.size() == open.mesh.vertices.size() + closed.fill.vertices);
     CHECK(closed.fill.vertices > 0);
     for (std::size_t v = 0; v < open.mesh.vertices.size(); ++v)
