@@ -146,7 +146,8 @@ struct Figures {
   double cube_mm = 0;
   // Seconds. read is NaN for generated inputs (gen holds the generation time instead).
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
-         refine_s = kNaN, output_s = kNaN, total_s = kNaN;
+         refine_s = kNaN, output_s = kNaN, gaps_s = kNaN, total_s = kNaN;
+  std::size_t closed_gaps = 0;  ///< sampling gaps closed by the reconstruction (stage "gaps")
   std::size_t inserted = 0, slivers = 0, sliver_flips = 0;
   // Hole filling on request (after the measured reconstruction, on its mesh): every loop of at
   // most FillOptions::kLimit edges.
@@ -268,7 +269,7 @@ Figures run_once(const Case& c, bool& available) {
   opt.cube_mode = c.cube;
   // Stage start times, filled by the observer; index by position in kStages.
   static constexpr std::string_view kStages[] = {"reduce", "normals", "front", "refine",
-                                                  "output", "done"};
+                                                  "output", "gaps",    "done"};
   Clock::time_point marks[std::size(kStages)];
   bool seen[std::size(kStages)] = {};
   const recon::StageObserver observer = [&](std::string_view stage) {
@@ -298,7 +299,10 @@ Figures run_once(const Case& c, bool& available) {
   f.normals_s = span(1, 2);
   f.front_s = span(2, 3);
   f.refine_s = span(3, 4);
-  f.output_s = span(4, 5);
+  // "gaps" runs only when the front left a sampling gap
+  f.output_s = seen[5] ? span(4, 5) : span(4, 6);
+  f.gaps_s = seen[5] ? span(5, 6) : 0.0;
+  f.closed_gaps = res->gaps.filled;
   f.inserted = res->refine.inserted;
   f.slivers = res->refine.slivers;
   f.sliver_flips = res->refine.sliver_flips;
@@ -451,10 +455,10 @@ void print_row(const Outcome& o) {
     std::snprintf(cube, sizeof cube, "%s", cube_name(o.c->cube));
   std::printf(
       "%-13s   cube %s; insertion %s ms (%zu points; %zu slivers, %zu flips to mend them); "
-      "output %s ms; %zu triangles; %.1f edge evals and %.1f points scanned per reduced pt; heap "
-      "peak %.1f MiB",
+      "output %s ms; sampling gaps %zu closed in %s ms; %zu triangles; %.1f edge evals and %.1f "
+      "points scanned per reduced pt; heap peak %.1f MiB",
       "", cube, fmt_ms(f.refine_s).c_str(), f.inserted, f.slivers, f.sliver_flips,
-      fmt_ms(f.output_s).c_str(), f.triangles,
+      fmt_ms(f.output_s).c_str(), f.closed_gaps, fmt_ms(f.gaps_s).c_str(), f.triangles,
       red > 0 ? static_cast<double>(f.edge_evaluations) / red : kNaN,
       red > 0 ? static_cast<double>(f.points_scanned) / red : kNaN,
       static_cast<double>(f.peak_case_bytes) / (1024.0 * 1024.0));
@@ -495,6 +499,7 @@ std::string json_line(const Outcome& o, int repeat) {
   s += ",\"front_ms\":" + json_ms(f.front_s) + ",\"front_pts_per_s\":" + json_rate(red, f.front_s);
   s += ",\"insertion_ms\":" + json_ms(f.refine_s) + ",\"inserted_points\":" + std::to_string(f.inserted);
   s += ",\"output_ms\":" + json_ms(f.output_s);
+  s += ",\"gaps_ms\":" + json_ms(f.gaps_s) + ",\"closed_gaps\":" + std::to_string(f.closed_gaps);
   s += ",\"fill_ms\":" + json_ms(f.fill_s) + ",\"filled_holes\":" + std::to_string(f.filled) +
        ",\"fill_vertices\":" + std::to_string(f.fill_vertices);
   s += ",\"crossing_pairs\":" + std::to_string(f.crossing_pairs) +
