@@ -220,8 +220,8 @@ TEST_CASE("real scan: raw range scan bun045 (registered)", "[recon][real][slow]"
 
 TEST_CASE("real scan: ten raw bunny scans merged with bun.conf make one component",
           "[recon][real][slow]") {
-  Case c{"bunny-merged", kMergedBunnyScans, "bunny/data/bun.conf", "bunny/reconstruction/bun_zipper.ply", std::nullopt,
-         std::nullopt, 1, true};
+  Case c{"bunny-merged", kMergedBunnyScans, "bunny/data/bun.conf",
+         "bunny/reconstruction/bun_zipper.ply", std::nullopt, std::nullopt, 1, true};
   run_case(c);
 }
 
@@ -309,16 +309,13 @@ TEST_CASE("real scan: sampling gaps left after the front are closed with their o
 // output has about two hundred crossing pairs; with it, none, and the points still go in.
 TEST_CASE("real scan: the crossing guard keeps the casting's triangles from piercing its walls",
           "[recon][real][slow]") {
-  const auto file = test::shared_file("casting/casting_vertices.xyz");
-  if (!file) {
-    WARN("SCANMESH_DATA is not set: skipping the casting's crossing guard");
-    return;
-  }
-  const auto cloud = meshio::read_points(*file);
+  const auto points =
+      load_points({"casting/casting_vertices.xyz"}, "", "the casting's crossing guard");
+  if (!points) return;
   recon::ReconstructOptions opt;
   opt.front.crossing_guard = false;
-  const recon::ReconstructResult unguarded = recon::reconstruct(cloud.points, opt);
-  const recon::ReconstructResult guarded = recon::reconstruct(cloud.points);
+  const recon::ReconstructResult unguarded = recon::reconstruct(*points, opt);
+  const recon::ReconstructResult guarded = recon::reconstruct(*points);
   const std::size_t before = recon::find_self_intersections(unguarded.mesh).pairs;
   const std::size_t after = recon::find_self_intersections(guarded.mesh).pairs;
   INFO("crossing pairs: unguarded " << before << ", guarded " << after << "; turning points "
@@ -379,16 +376,12 @@ TEST_CASE("real scan: on request the bunny's base holes and the casting's loops 
   };
   for (const Filled& c : {Filled{"bunny/reconstruction/bun_zipper_vertices.xyz", 64},
                           Filled{"casting/casting_vertices.xyz", 64}}) {
-    const auto file = test::shared_file(c.input);
-    if (!file) {
-      WARN("SCANMESH_DATA is not set: skipping the hole filling on " << c.input);
-      return;
-    }
-    const auto cloud = meshio::read_points(*file);
+    const auto points = load_points({c.input}, "", "the hole filling on " + c.input);
+    if (!points) return;
     recon::ReconstructOptions opt;
-    const recon::ReconstructResult open = recon::reconstruct(cloud.points, opt);
+    const recon::ReconstructResult open = recon::reconstruct(*points, opt);
     opt.fill.max_edges = c.max_edges;
-    const recon::ReconstructResult closed = recon::reconstruct(cloud.points, opt);
+    const recon::ReconstructResult closed = recon::reconstruct(*points, opt);
     const recon::MeshReport before = recon::analyze(open.mesh), after = recon::analyze(closed.mesh);
     INFO(c.input << ": loops " << before.boundary_loops << " -> " << after.boundary_loops
                  << ", genus " << before.genus << " -> " << after.genus);
@@ -428,7 +421,7 @@ TEST_CASE("real scan: on request the bunny's base holes and the casting's loops 
     // Refinement and fairing never fold a patch: its sharpest crease stays within 10 degrees of
     // the minimum-weight (flat) patch's. The casting's loops span sharp edges of the part.
     opt.fill.refine = false;
-    const recon::ReconstructResult flat = recon::reconstruct(cloud.points, opt);
+    const recon::ReconstructResult flat = recon::reconstruct(*points, opt);
     const double flat_crease = sharpest_patch_crease(flat.mesh, mesh_triangles);
     const double crease = sharpest_patch_crease(closed.mesh, mesh_triangles);
     INFO("sharpest crease: flat patches " << flat_crease << " deg, refined " << crease << " deg; filled "
