@@ -468,9 +468,10 @@ std::vector<std::string> FillOptions::validate() const {
 FillStats fill_holes(Mesh& mesh, const FillOptions& options,
                      std::span<const float> vertex_spacing) {
   if (options.max_perimeter_spacings > 0 && vertex_spacing.size() < mesh.vertices.size())
-    throw std::invalid_argument("fill_holes: a perimeter limit needs the spacing of every vertex (" +
-                                std::to_string(vertex_spacing.size()) + " for " +
-                                std::to_string(mesh.vertices.size()) + " vertices)");
+    throw std::invalid_argument(
+        "fill_holes: a perimeter limit needs the spacing of every vertex (" +
+        std::to_string(vertex_spacing.size()) + " for " + std::to_string(mesh.vertices.size()) +
+        " vertices)");
   FillStats stats;
   if (mesh.triangles.empty()) return stats;
   const MeshReport report = analyze(mesh, true);
@@ -491,8 +492,9 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
         perimeter += (mesh.vertices[q[(i + 1) % q.size()]] - mesh.vertices[q[i]]).norm();
         spacing += vertex_spacing[q[i]];
       }
-      too_long[li] = perimeter * static_cast<double>(q.size()) >
-                     options.max_perimeter_spacings * spacing;
+      // (not "<=": a loop through a non-finite coordinate is not a short one)
+      too_long[li] = !(perimeter * static_cast<double>(q.size()) <=
+                       options.max_perimeter_spacings * spacing);
     }
   }
   std::vector<char> on_small_loop(mesh.vertices.size(), 0);
