@@ -247,6 +247,7 @@ class Builder {
       auto mid = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2);
       std::nth_element(sp.begin(), mid, sp.end());
       max_spacing_ = kMaxSparsity * static_cast<double>(*mid);
+      res_.spacing_cap = max_spacing_;
       // Clearance of the front-edge tests: 8 float roundings (2^-24 relative) of the largest
       // coordinate, so that no vertex that just misses an edge lands on it in a float file; at
       // most 1e-3 of the median spacing (a cloud far from the origin, which a float file cannot

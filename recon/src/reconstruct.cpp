@@ -182,12 +182,11 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     // Re-grid with the measured local spacing so that one ring of cells covers the front's scan
     // radius (1.5 x radius_factor spacings plus half an edge): 9 rows a query, where cells half
     // that size made the row look-ups cost more than the extra points the larger cells bring.
-    double median = 0;
     {
       std::vector<float> sp = frames.spacing;
       std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2),
                        sp.end());
-      median = sp[sp.size() / 2];
+      const double median = sp[sp.size() / 2];
       if (median > 0)
         grid.build(reduced, (options.front.radius_factor * 1.5 + 0.6) * median);
     }
@@ -198,12 +197,9 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
 
     stage("refine");
     res.refine = insert_unused_points(reduced, frames, grid, fr, options.refine);
-    if (options.close_gaps) {
-      // Capped like the front's (kMaxSparsity): the same measure as its own gap closing.
+    if (options.close_gaps) {  // the front's own measure, as in its own gap closing
       spacing = frames.spacing;
-      const auto cap = static_cast<float>(2.5 * median);
-      if (median > 0)
-        for (float& s : spacing) s = std::min(s, cap);
+      for (float& s : spacing) s = static_cast<float>(std::min<double>(s, fr.spacing_cap));
     }
   }  // frames and grid are freed here, before the output copy
 
@@ -243,11 +239,11 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     for (std::size_t v = 0; v < reduced.size(); ++v)
       if (remap[v] != 0xffffffffu) vertex_spacing[remap[v]] = spacing[v];
     std::vector<float>().swap(spacing);
-    FillOptions gaps;
-    gaps.max_edges = options.front.fill_max_edges;
-    gaps.max_perimeter_spacings = options.front.fill_perimeter_factor;
-    gaps.refine = false;
-    res.gaps = fill_holes(res.mesh, gaps, vertex_spacing);
+    FillOptions gap_fill;
+    gap_fill.max_edges = options.front.fill_max_edges;
+    gap_fill.max_perimeter_spacings = options.front.fill_perimeter_factor;
+    gap_fill.refine = false;
+    res.gaps = fill_holes(res.mesh, gap_fill, vertex_spacing);
   }
   if (options.fill.max_edges > 0) {
     stage("fill");

@@ -67,6 +67,9 @@ struct FrontResult {
   std::size_t turning_points = 0;  ///< points near which the surface turns back (crossing guard)
   /// Small components removed because they crossed another one (their points are outliers).
   std::size_t dropped_components = 0;
+  /// The front's local spacing of a point is frames.spacing capped at this (2.5 x the median),
+  /// so that the sparse fringe of a scan cannot pull long triangles.
+  double spacing_cap = 0;
 };
 
 /// Triangulates `points` (with `frames` from estimate_frames and `grid` indexing the points
