@@ -1,8 +1,12 @@
 // Reconstruction of synthetic clouds with known topology, degenerate inputs and determinism.
 // SPDX-License-Identifier: MIT
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <limits>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/analysis.hpp"
@@ -64,7 +68,8 @@ TEST_CASE("sphere with one cap removed has exactly one boundary loop", "[recon]"
   std::vector<Vec3> pts;
   for (const Vec3& p : test::sphere_points(20000, 10.0))
     if (p.z() < 7.0) pts.push_back(p);
-  const auto r = reconstruct(pts);
+  std::vector<std::string> stages;
+  const auto r = reconstruct(pts, {}, [&](std::string_view s) { stages.emplace_back(s); });
   const auto rep = analyze(r.mesh);
   require_valid(r, rep);
   CHECK(rep.boundary_loops == 1);
@@ -72,6 +77,10 @@ TEST_CASE("sphere with one cap removed has exactly one boundary loop", "[recon]"
   CHECK(rep.genus == 0);
   // The loop runs along the cut: every boundary vertex is near z = 7.
   CHECK(rep.boundary_loop_lengths.front() > 50);
+  // A border is no sampling gap: the gap stage is not even entered.
+  CHECK(r.gaps.filled == 0);
+  CHECK(std::find(stages.begin(), stages.end(), "gaps") == stages.end());
+  CHECK(std::find(stages.begin(), stages.end(), "front") != stages.end());
 }
 
 TEST_CASE("open cylinder as a 5:1 anisotropic raster scan has exactly two loops", "[recon]") {
