@@ -50,6 +50,16 @@ inline ClosestPoint closest_on_degenerate(const Vec3& p, const Vec3& a, const Ve
   return best;
 }
 
+/// In an edge's Voronoi region: the point origin + (num / den) * dir on that edge, or, when the
+/// triangle is too thin for the ratio (den not positive), the closest of its three edges.
+inline ClosestPoint closest_in_edge_region(const Vec3& p, const Vec3& a, const Vec3& b,
+                                           const Vec3& c, const Vec3& origin, const Vec3& dir,
+                                           double num, double den, Feature edge) {
+  if (!(den > 0)) return closest_on_degenerate(p, a, b, c);
+  const Vec3 q = origin + (num / den) * dir;
+  return ClosestPoint{q, (p - q).squaredNorm(), edge};
+}
+
 /// Closest point on triangle (a, b, c) to p by Voronoi regions (Ericson, Real-Time Collision
 /// Detection, 5.1.5), reporting the feature it lies on.
 inline ClosestPoint closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -60,29 +70,18 @@ inline ClosestPoint closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3
   const double d3 = ab.dot(bp), d4 = ac.dot(bp);
   if (d3 >= 0 && d4 <= d3) return ClosestPoint{b, bp.squaredNorm(), Feature::kVertex1};
   const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    const double den = d1 - d3;
-    if (!(den > 0)) return closest_on_degenerate(p, a, b, c);
-    const Vec3 q = a + (d1 / den) * ab;
-    return ClosestPoint{q, (p - q).squaredNorm(), Feature::kEdge0};
-  }
+  if (vc <= 0 && d1 >= 0 && d3 <= 0)
+    return closest_in_edge_region(p, a, b, c, a, ab, d1, d1 - d3, Feature::kEdge0);
   const Vec3 cp = p - c;
   const double d5 = ab.dot(cp), d6 = ac.dot(cp);
   if (d6 >= 0 && d5 <= d6) return ClosestPoint{c, cp.squaredNorm(), Feature::kVertex2};
   const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    const double den = d2 - d6;
-    if (!(den > 0)) return closest_on_degenerate(p, a, b, c);
-    const Vec3 q = a + (d2 / den) * ac;
-    return ClosestPoint{q, (p - q).squaredNorm(), Feature::kEdge2};
-  }
+  if (vb <= 0 && d2 >= 0 && d6 <= 0)
+    return closest_in_edge_region(p, a, b, c, a, ac, d2, d2 - d6, Feature::kEdge2);
   const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    const double den = (d4 - d3) + (d5 - d6);
-    if (!(den > 0)) return closest_on_degenerate(p, a, b, c);
-    const Vec3 q = b + ((d4 - d3) / den) * (c - b);
-    return ClosestPoint{q, (p - q).squaredNorm(), Feature::kEdge1};
-  }
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return closest_in_edge_region(p, a, b, c, b, c - b, d4 - d3, (d4 - d3) + (d5 - d6),
+                                  Feature::kEdge1);
   const double sum = va + vb + vc;
   if (!(sum > 0) || !std::isfinite(sum)) return closest_on_degenerate(p, a, b, c);
   const double v = vb / sum, w = vc / sum;
