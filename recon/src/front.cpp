@@ -168,6 +168,10 @@ struct FrontEdge {
   std::uint32_t next_out;    // next outgoing front edge of vertex a
   std::uint32_t stamp;       // bumped on every (re)queue; stale heap entries are skipped
   bool alive;
+  // Modes (bit 0 strict, bit 1 relaxed) in which this edge found no candidate at all, valid
+  // while no_candidate_gen equals the builder's candidate generation (see Builder::process).
+  std::uint8_t no_candidate;
+  std::uint16_t no_candidate_gen;
 };
 
 struct QueueItem {
@@ -272,6 +276,7 @@ class Builder {
   struct Mode {
     double radius_factor, cos_min_angle, cos_dihedral;
     bool second_chance;  // valid() may take a feature point for the other face (feature_fits)
+    std::uint8_t bit;    // this mode's bit in FrontEdge::no_candidate
   };
 
   // --- front bookkeeping -------------------------------------------------------------------
@@ -291,7 +296,7 @@ class Builder {
     // fix) was measured worse: bun000 98.9% used instead of 99.2%, the casting genus 21; a
     // strict retry or a depth-first wave did not recover it. The early runs of new edges act
     // as an ordering heuristic that a principled order has to match before this is changed.
-    e = FrontEdge{a, b, opp, kNone, kNone, head_out_[a], 0, true};
+    e = FrontEdge{a, b, opp, kNone, kNone, head_out_[a], 0, true, 0, 0};
     head_out_[a] = id;
     edges_map_.insert(a, b, id);
     return id;
@@ -494,6 +499,15 @@ class Builder {
   std::deque<QueueItem> wave_;
   std::vector<std::uint32_t> deferred_;
   bool front_stale_ = false;  // repair_fans removed triangles; rebuild_front() not yet called
+  // Generation of the edges' no-candidate marks (process); changed by every step that removes
+  // triangles or rebuilds the front, after which point states can move back.
+  std::uint16_t candidate_gen_ = 1;
+  void forget_no_candidates() {
+    if (++candidate_gen_ == 0) {  // wrapped: clear every mark, start again
+      for (FrontEdge& e : edges_) e.no_candidate = 0;
+      candidate_gen_ = 1;
+    }
+  }
 #ifndef NDEBUG
   bool check_every_step_ = true;
 #else
@@ -733,7 +747,20 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
 }
 
 bool Builder::process(std::uint32_t eid, const Mode& mode) {
-  const FrontEdge& e = edges_[eid];
+  FrontEdge& e = edges_[eid];
+  // An edge that found no candidate at all in this mode finds none again: whether a point is a
+  // candidate depends only on the edge, the mode, fixed point data and the point's state, and
+  // while the front only grows states only move forward (free -> front -> done), so the set of
+  // free or front points can only shrink. (Stale queue entries run such edges again and again:
+  // a third of all evaluations on a 90k-point height field, most of them slivers of three
+  // edges waiting for the end.) Removing triangles moves states back: candidate_gen_ changes.
+  // Debug builds still run the scan and check that it finds nothing.
+  const bool known_empty =
+      (e.no_candidate & mode.bit) != 0 && e.no_candidate_gen == candidate_gen_;
+  if (known_empty) {
+    ++res_.repeats_skipped;
+    if (!check_every_step_) return false;
+  }
   const std::uint32_t a = e.a, b = e.b, x = e.opp;
   const Vec3 &pa = p_[a], &pb = p_[b];
   const Vec3 n0 = edge_normal(e);
@@ -799,7 +826,15 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
       consider(j, la2, lb2);
     }
   });
-  if (cand_.empty()) return false;
+  if (cand_.empty()) {
+    if (e.no_candidate_gen != candidate_gen_) {
+      e.no_candidate = 0;
+      e.no_candidate_gen = candidate_gen_;
+    }
+    e.no_candidate |= mode.bit;
+    return false;
+  }
+  assert(!known_empty && "an edge without candidates found one later");
   std::sort(cand_.begin(), cand_.end(), [](const Candidate& l, const Candidate& r) {
     return l.score != r.score ? l.score > r.score : l.p < r.p;
   });
@@ -912,9 +947,9 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
 void Builder::grow() {
   const double deg = kPi / 180;
   const Mode strict{opt_.radius_factor, std::cos(opt_.min_angle_deg * deg),
-                    std::cos((180.0 - opt_.min_dihedral_deg) * deg), false};
+                    std::cos((180.0 - opt_.min_dihedral_deg) * deg), false, 1};
   const Mode relaxed{opt_.relaxed_radius_factor, std::cos(opt_.relaxed_min_angle_deg * deg),
-                     std::cos((180.0 - opt_.relaxed_min_dihedral_deg) * deg), true};
+                     std::cos((180.0 - opt_.relaxed_min_dihedral_deg) * deg), true, 2};
   while (true) {
     while (!ears_.empty() || !wave_.empty()) {
       QueueItem it;
@@ -1009,6 +1044,7 @@ void Builder::fill_small_loops() {
 }
 
 std::size_t Builder::repair_fans(bool thorough) {
+  forget_no_candidates();
   std::size_t total = 0;
   // A vertex whose triangles form several fans is non-manifold: keep its largest fan. While the
   // front matches the mesh, such vertices are exactly those with more than one open sector
@@ -1204,6 +1240,7 @@ void Builder::update_front_after_removal(const std::vector<Triangle>& removed,
 }
 
 void Builder::split_flat_triangle_holes() {
+  forget_no_candidates();
   // A small hole whose corners are all collinear (points on a straight feature line: a slit,
   // every ear a sliver) cannot take triangles of its own. The triangle behind each of its edges
   // that spans other corners of the hole is split at them (a fan from its third vertex), so the
@@ -1267,6 +1304,7 @@ void Builder::split_flat_triangle_holes() {
 }
 
 void Builder::rebuild_front() {
+  forget_no_candidates();
   front_stale_ = false;
   // Every undirected edge with its triangle count; boundary half-edges become the new front.
   edges_.clear();
@@ -1339,6 +1377,7 @@ void Builder::rebuild_front() {
 /// pair; its points become outliers, and the insertion stage puts them into the triangles they
 /// lie on.
 void Builder::drop_crossing_components() {
+  forget_no_candidates();
   res_.dropped_components += remove_crossing_components(p_, tris_);
 }
 

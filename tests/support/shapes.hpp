@@ -77,4 +77,19 @@ inline std::vector<Vec3> ruled_scan_lines(double width, double depth, std::uint3
   return pts;
 }
 
+/// A gently curved height field over an n x n grid of unit spacing, each sample jittered by up
+/// to +-0.3 in x and y (seeded), as the benchmark's large synthetic scan.
+inline std::vector<Vec3> jittered_height_field(int n, std::uint32_t seed) {
+  std::mt19937 gen(seed);
+  std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+  std::vector<Vec3> pts;
+  pts.reserve(static_cast<std::size_t>(n) * static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const double x = i + jitter(gen), y = j + jitter(gen);
+      pts.emplace_back(x, y, 4 * std::sin(x / 20) + 3 * std::sin(y / 15));
+    }
+  return pts;
+}
+
 }  // namespace scanmesh::test
