@@ -242,6 +242,12 @@ class Builder {
       : p_(pts), f_(frames), grid_(grid), opt_(opt), edges_map_(pts.size() * 3) {
     const std::size_t n = pts.size();
     state_.assign(n, VertexState::kFree);
+    slot_state_.assign(n, VertexState::kFree);
+    slot_of_.resize(n);
+    {
+      const std::vector<std::uint32_t>& order = grid.order();
+      for (std::uint32_t s = 0; s < order.size(); ++s) slot_of_[order[s]] = s;
+    }
     head_out_.assign(n, kNone);
     valence_.assign(n, 0);
     tris_.reserve(n * 2 + 16);
@@ -311,8 +317,14 @@ class Builder {
     ++e.stamp;
     free_edges_.push_back(id);
   }
+  /// Every state change during the growth goes through here: the candidate scan reads the
+  /// states in grid slot order (slot_state_), the rest by point.
+  void set_state(std::uint32_t v, VertexState st) {
+    state_[v] = st;
+    slot_state_[slot_of_[v]] = st;
+  }
   void update_state(std::uint32_t v) {
-    state_[v] = head_out_[v] == kNone ? VertexState::kDone : VertexState::kFront;
+    set_state(v, head_out_[v] == kNone ? VertexState::kDone : VertexState::kFront);
     if (state_[v] == VertexState::kDone && !corner_head_.empty() && turning_[v] != 1) release_corners(v);
   }
   [[nodiscard]] Vec3 tri_normal(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
@@ -487,6 +499,11 @@ class Builder {
   const PointGrid& grid_;
   const FrontOptions& opt_;
   std::vector<VertexState> state_;
+  // state_ in the grid's slot order (slot_state_[s] is the state of order()[s]), and each
+  // point's slot: the candidate scan reads the states of a cell block in sequence and looks at
+  // a point's index and position only when it is free or on the front (5 bytes a point).
+  std::vector<VertexState> slot_state_;
+  std::vector<std::uint32_t> slot_of_;
   std::vector<std::uint32_t> head_out_;
   std::vector<std::uint8_t> valence_;
   std::vector<FrontEdge> edges_;
@@ -587,7 +604,7 @@ bool Builder::try_seed(std::uint32_t s) {
       edges_[e2].prev = e1;
       for (std::uint32_t v : {s, a, b}) {
         valence_[v] = 2;
-        state_[v] = VertexState::kFront;
+        set_state(v, VertexState::kFront);
       }
       push(e0);
       push(e1);
@@ -807,15 +824,15 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   const double scan_radius = std::sqrt(std::max(gather2 - 0.25 * lab * lab, 0.0));
   const double ax = pa.x(), ay = pa.y(), az = pa.z(), bx = pb.x(), by = pb.y(), bz = pb.z();
   const std::uint32_t* order = grid_.order().data();
-  const VertexState* state = state_.data();
+  const VertexState* slot_state = slot_state_.data();
   const Vec3* pts = p_.data();
   grid_.for_each_range_within(mid, scan_radius, [&](std::uint32_t first, std::uint32_t last) {
     res_.points_scanned += last - first;
     for (std::uint32_t slot = first; slot < last; ++slot) {
-      const std::uint32_t j = order[slot];
-      const VertexState st = state[j];
-      if (st == VertexState::kFront) near_front_.push_back(j);
+      const VertexState st = slot_state[slot];
       if (st != VertexState::kFree && st != VertexState::kFront) continue;
+      const std::uint32_t j = order[slot];
+      if (st == VertexState::kFront) near_front_.push_back(j);
       const double* q = pts[j].data();
       const double uax = q[0] - ax, uay = q[1] - ay, uaz = q[2] - az;
       const double la2 = uax * uax + uay * uay + uaz * uaz;
@@ -1229,7 +1246,7 @@ void Builder::update_front_after_removal(const std::vector<Triangle>& removed,
     edges_[nx].prev = id;
   }
   for (std::uint32_t v : touched) {
-    if (valence_[v] == 0) state_[v] = VertexState::kFree;  // its triangles are gone: free again
+    if (valence_[v] == 0) set_state(v, VertexState::kFree);  // its triangles are gone: free again
     else update_state(v);
   }
   // Every front edge is evaluated again, as after a rebuild: the removal may have unblocked
