@@ -406,6 +406,13 @@ class Builder {
     }
 #endif
   }
+  /// Debug check that the scan's slot-ordered states mirror the states (set_state); O(points):
+  /// after every triangle on small clouds, at the end of every growth on all.
+  void check_slot_states() const {
+#ifndef NDEBUG
+    for (std::uint32_t v = 0; v < state_.size(); ++v) assert(slot_state_[slot_of_[v]] == state_[v]);
+#endif
+  }
 
   // --- growth --------------------------------------------------------------------------------
   bool try_seed(std::uint32_t s);
@@ -531,6 +538,7 @@ class Builder {
   bool check_every_step_ = false;
 #endif
   static constexpr std::size_t kCheckAllUpTo = 60000;
+  static constexpr std::size_t kCheckSlotsUpTo = 8000;
   std::uint32_t steps_ = 0;
   // scratch buffers reused by every query (no allocation on the hot path once warmed up)
   std::vector<Candidate> cand_;
@@ -959,6 +967,8 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
   // edge pool, so on a large scan every step would make the debug run quadratic), then after
   // every 256th.
   if (check_every_step_ && (p_.size() <= kCheckAllUpTo || (++steps_ & 255u) == 0)) check_front();
+  // The slot-ordered states (O(points) to check): every step on small clouds.
+  if (check_every_step_ && p_.size() <= kCheckSlotsUpTo) check_slot_states();
 }
 
 void Builder::grow() {
@@ -982,6 +992,7 @@ void Builder::grow() {
       if (!process(it.edge, strict)) deferred_.push_back(it.edge);
     }
     if (deferred_.empty()) break;
+    if (check_every_step_) check_slot_states();
     std::vector<std::uint32_t> batch;
     batch.swap(deferred_);
     for (std::uint32_t id : batch) {
@@ -990,6 +1001,7 @@ void Builder::grow() {
       if (process(id, relaxed)) res_.relaxed_triangles += tris_.size() - before;
     }
   }
+  if (check_every_step_) check_slot_states();
 }
 
 void Builder::fill_small_loops() {
