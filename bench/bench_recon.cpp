@@ -142,7 +142,7 @@ double seconds_between(Clock::time_point a, Clock::time_point b) {
 /// One measured repetition of a case (or the best over repetitions).
 struct Figures {
   std::size_t input_points = 0, reduced_points = 0, triangles = 0;
-  std::size_t edge_evaluations = 0, points_scanned = 0, repeats_skipped = 0;
+  std::size_t edge_evaluations = 0, points_scanned = 0, skipped_evaluations = 0;
   double cube_mm = 0;
   // Seconds. read is NaN for generated inputs (gen holds the generation time instead).
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
@@ -311,7 +311,7 @@ Figures run_once(const Case& c, bool& available) {
   f.triangles = res->mesh.triangles.size();
   f.edge_evaluations = res->edge_evaluations;
   f.points_scanned = res->points_scanned;
-  f.repeats_skipped = res->repeats_skipped;
+  f.skipped_evaluations = res->skipped_evaluations;
   f.cube_mm = res->cube_mm;
   f.peak_case_bytes = std::max(peak_load, peak_recon) - base;
   f.peak_recon_bytes = peak_recon - recon_base;
@@ -461,7 +461,7 @@ void print_row(const Outcome& o) {
       "", cube, fmt_ms(f.refine_s).c_str(), f.inserted, f.slivers, f.sliver_flips,
       fmt_ms(f.output_s).c_str(), f.closed_gaps, fmt_ms(f.gaps_s).c_str(), f.triangles,
       red > 0 ? static_cast<double>(f.edge_evaluations) / red : kNaN,
-      red > 0 ? static_cast<double>(f.repeats_skipped) / red : kNaN,
+      red > 0 ? static_cast<double>(f.skipped_evaluations) / red : kNaN,
       red > 0 ? static_cast<double>(f.points_scanned) / red : kNaN,
       static_cast<double>(f.peak_case_bytes) / (1024.0 * 1024.0));
   if (!std::isnan(f.gen_s)) std::printf("; generated (not read) in %s ms", fmt_ms(f.gen_s).c_str());
@@ -514,7 +514,7 @@ std::string json_line(const Outcome& o, int repeat) {
   s += ",\"recon_allocations\":" + std::to_string(f.recon_allocs);
   s += ",\"edge_evaluations\":" + std::to_string(f.edge_evaluations);
   s += ",\"points_scanned\":" + std::to_string(f.points_scanned);
-  s += ",\"skipped_evaluations\":" + std::to_string(f.repeats_skipped);
+  s += ",\"skipped_evaluations\":" + std::to_string(f.skipped_evaluations);
   s += ",\"max_rss_bytes\":" + std::to_string(o.max_rss) + "}";
   return s;
 }

@@ -203,7 +203,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     put_fill(j, res.fill);
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
-    j["skipped_evaluations"] = res.repeats_skipped;
+    j["skipped_evaluations"] = res.skipped_evaluations;
     j["turning_points"] = res.turning_points;
     j["dropped_components"] = res.dropped_components;
     j["output"] = args.output;

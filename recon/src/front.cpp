@@ -783,7 +783,7 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   const bool known_empty =
       (e.no_candidate & mode.bit) != 0 && e.no_candidate_gen == candidate_gen_;
   if (known_empty) {
-    ++res_.repeats_skipped;
+    ++res_.skipped_evaluations;
     if (!check_every_step_) return false;
   }
   const std::uint32_t a = e.a, b = e.b, x = e.opp;

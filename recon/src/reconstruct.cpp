@@ -230,7 +230,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.removed_fan_triangles = fr.removed_fan_triangles;
   res.edge_evaluations = fr.edge_evaluations;
   res.points_scanned = fr.points_scanned;
-  res.repeats_skipped = fr.repeats_skipped;
+  res.skipped_evaluations = fr.skipped_evaluations;
   res.seed_attempts = fr.seed_attempts;
   res.turning_points = fr.turning_points;
   res.dropped_components = fr.dropped_components;

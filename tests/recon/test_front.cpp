@@ -268,7 +268,7 @@ TEST_CASE("a jittered height field meshes whole; edges without candidates are no
   CHECK(rep.boundary_loops == 1);
   CHECK(rep.components == 1);
   CHECK(rep.genus == 0);
-  CHECK(r.repeats_skipped > 0);
+  CHECK(r.skipped_evaluations > 0);
 }
 
 TEST_CASE("reconstruction is deterministic", "[recon]") {

@@ -66,7 +66,7 @@ struct FrontResult {
   /// Evaluations not run: the edge had found no candidate in that mode before, and none can
   /// have appeared since (cost counter; debug builds run them anyway and check that they find
   /// nothing).
-  std::size_t repeats_skipped = 0;
+  std::size_t skipped_evaluations = 0;
   std::size_t seed_attempts = 0;
   std::size_t turning_points = 0;  ///< points near which the surface turns back (crossing guard)
   /// Small components removed because they crossed another one (their points are outliers).

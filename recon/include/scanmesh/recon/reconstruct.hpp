@@ -56,7 +56,7 @@ struct ReconstructResult {
   FillStats fill;      ///< holes closed on request (options.fill)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
   /// Front edge evaluations not run: known to find no candidate (cost counter).
-  std::size_t repeats_skipped = 0;
+  std::size_t skipped_evaluations = 0;
   std::size_t turning_points = 0;  ///< points the crossing guard tests against everything near
   /// Small components the front removed because they crossed another (points then inserted).
   std::size_t dropped_components = 0;
