@@ -34,6 +34,7 @@ struct ReconstructArgs {
   bool ascii = false;
   std::string outliers_file;
   bool no_insert = false;
+  bool no_bulk = false;
   bool progress = false;
   std::size_t fill_holes = 0;
   bool fill_flat = false;
@@ -112,6 +113,7 @@ int run_reconstruct(const ReconstructArgs& args) {
   opt.front.min_angle_deg = args.min_angle_deg;
   opt.front.relaxed_min_angle_deg = std::min(opt.front.relaxed_min_angle_deg, args.min_angle_deg);
   opt.refine.enabled = !args.no_insert;
+  opt.front.bulk = !args.no_bulk;
   opt.fill.max_edges = args.fill_holes;
   opt.fill.refine = !args.fill_flat;
   if (args.inputs.empty() && args.conf.empty())
@@ -205,6 +207,8 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["points_scanned"] = res.points_scanned;
     j["skipped_evaluations"] = res.skipped_evaluations;
     j["turning_points"] = res.turning_points;
+    j["bulk_patches"] = res.bulk_patches;
+    j["bulk_triangles"] = res.bulk_triangles;
     j["dropped_components"] = res.dropped_components;
     j["output"] = args.output;
     if (!args.preview.empty()) j["preview"] = args.preview;
@@ -278,6 +282,9 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");
   cmd->add_flag("--no-insert", args->no_insert,
                 "leave the points the front did not reach out (no insertion afterwards)");
+  cmd->add_flag("--no-bulk", args->no_bulk,
+                "grow the whole mesh with the front from seed triangles (no planar Delaunay "
+                "patches first; slower, for comparison)");
   cmd->add_option("--fill-holes", args->fill_holes,
                   "close the boundary loops of at most N edges (minimum-weight patch of the "
                   "loop, refined to the density around it and faired to continue the surface); "

@@ -9,6 +9,8 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config clang libclang-rt-14-dev
   # geometry core, CLI, tests
   libeigen3-dev catch2 nlohmann-json3-dev libcli11-dev
+  # the bulk's planar Delaunay triangulation (header-only; GMP/MPFR for its exact predicates)
+  libcgal-dev libgmp-dev libmpfr-dev
   # images (preview and deviation pictures): only the OpenCV modules we link; PNG via libpng
   libopencv-core-dev libopencv-imgproc-dev libpng-dev
   # device layer and daemon

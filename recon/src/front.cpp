@@ -10,6 +10,7 @@
 #include "scanmesh/recon/front.hpp"
 
 #include "scanmesh/recon/intersections.hpp"
+#include "bulk.hpp"
 #include "triangle_components.hpp"
 #include "triangle_shape.hpp"
 
@@ -426,6 +427,39 @@ class Builder {
   void add_triangle(std::uint32_t eid, std::uint32_t p);
   void grow();
   void fill_small_loops();
+  /// Triangulates the bulk (bulk.hpp) and grows the front from its borders.
+  void grow_from_bulk();
+  /// Whether the m triangles `ids` around v form one fan, walking across shared edges in the
+  /// orientation of the first (false: not shown this way, which proves nothing).
+  [[nodiscard]] bool one_oriented_fan(std::uint32_t v, const std::uint32_t* ids, std::uint32_t m) const {
+    if (m > 64) return false;
+    auto corners = [&](std::uint32_t id, std::uint32_t& next, std::uint32_t& prev) {
+      const Triangle& t = tris_[id];
+      const std::size_t k = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+      next = t[(k + 1) % 3];
+      prev = t[(k + 2) % 3];
+    };
+    std::uint64_t visited = 1;  // triangle i: bit i
+    std::uint32_t first_next = 0, first_prev = 0;
+    corners(ids[0], first_next, first_prev);
+    // Steps from `cur` to an unvisited triangle whose `from` corner is cur; returns its other
+    // corner, or kNone.
+    auto step = [&](std::uint32_t cur, bool forwards) {
+      for (std::uint32_t i = 1; i < m; ++i) {
+        if (visited >> i & 1u) continue;
+        std::uint32_t nx = 0, pv = 0;
+        corners(ids[i], nx, pv);
+        if ((forwards ? pv : nx) == cur) {
+          visited |= std::uint64_t{1} << i;
+          return forwards ? nx : pv;
+        }
+      }
+      return kNone;
+    };
+    for (std::uint32_t cur = first_next; cur != kNone && cur != first_prev;) cur = step(cur, true);
+    for (std::uint32_t cur = first_prev; cur != kNone && cur != first_next;) cur = step(cur, false);
+    return visited == (m == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << m) - 1);
+  }
   /// Keeps the largest fan of every multi-fan vertex. thorough: examine every vertex, not only
   /// those the front shows with two open sectors (a vertex where two closed fans touch has no
   /// front edge at all).
@@ -1112,8 +1146,12 @@ std::size_t Builder::repair_fans(bool thorough) {
       const std::uint32_t v = thorough ? c : check[c];
       const std::uint32_t b0 = start[c], b1 = start[c + 1];
       if (b1 - b0 < 2) continue;
-      // union-find over the triangles of v: join triangles sharing an edge (v, w)
       const std::uint32_t m = b1 - b0;
+      // Fast path: walking from the first triangle to the next one around v (its `next` corner
+      // is the following triangle's `prev`, as in a consistently oriented fan) and back reaches
+      // all m: one fan. Otherwise the exact test below decides.
+      if (one_oriented_fan(v, vt.data() + b0, m)) continue;
+      // union-find over the triangles of v: join triangles sharing an edge (v, w)
       fan.assign(m, -1);
       auto find = [&](int i) {
         while (fan[static_cast<std::size_t>(i)] >= 0) i = fan[static_cast<std::size_t>(i)];
@@ -1668,6 +1706,48 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
   return false;
 }
 
+void Builder::grow_from_bulk() {
+  detail::BulkOptions bo;
+  bo.radius_factor = opt_.radius_factor;
+  bo.cos_min_angle = std::cos(opt_.min_angle_deg * kPi / 180);
+  bo.cos_dihedral = std::cos((180.0 - opt_.min_dihedral_deg) * kPi / 180);
+  bo.cos_corner = std::max<double>(kCosBent, cos_normal_);
+  bo.spacing_cap = max_spacing_;
+  bo.max_valence = opt_.max_valence;
+  bo.max_patch_points = opt_.bulk_patch_points;
+  detail::BulkStats stats;
+  detail::BulkMesh bulk;
+  bulk.triangles.swap(tris_);  // empty, with the storage reserved for the whole mesh
+  detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);
+  tris_.swap(bulk.triangles);
+  res_.bulk_patches = stats.patches;
+  res_.bulk_triangles = stats.triangles;
+  if (tris_.empty()) return;
+  // The front along the bulk's border, as rebuild_front would make it but without a pass over
+  // every edge: the bulk knows its border, and the interior edges the front can meet (those
+  // between two border vertices).
+  forget_no_candidates();
+  for (const Triangle& t : tris_)
+    for (std::uint32_t v : t) ++valence_[v];
+  for (const auto& [a, b, opp] : bulk.border) {
+    new_edge(a, b, opp);
+    ++valence_[a];  // an open fan of k triangles has k + 1 edges
+  }
+  for (const auto& [u, w] : bulk.border_chords) edges_map_.insert(u, w, kInterior);
+  for (std::uint32_t id = 0; id < edges_.size(); ++id) {
+    const std::uint32_t nx = head_out_[edges_[id].b];
+    edges_[id].next = nx;
+    edges_[nx].prev = id;
+  }
+  for (const Triangle& t : tris_)
+    for (std::uint32_t v : t)
+      if (state_[v] == VertexState::kFree) update_state(v);
+  for (std::uint32_t id = 0; id < edges_.size(); ++id) push(id);
+  rebuild_corner_lists();
+  if (check_every_step_) check_front();
+  grow();
+}
+
 FrontResult Builder::run() {
   const std::size_t n = p_.size();
   // Seeds: flattest points first (index breaks ties, so the order is deterministic): a stable
@@ -1693,6 +1773,7 @@ FrontResult Builder::run() {
       if (shift == 0) tmp.swap(order);
     }
   }
+  if (opt_.bulk) grow_from_bulk();
   for (std::uint32_t s : order) {
     if (state_[s] != VertexState::kFree) continue;
     if (try_seed(s)) grow();
@@ -1761,6 +1842,7 @@ std::vector<std::string> FrontOptions::validate() const {
   if (!(relaxed_min_angle_deg >= 0 && relaxed_min_angle_deg <= min_angle_deg))
     errors.push_back("relaxed_min_angle_deg must be in [0, min_angle_deg]");
   if (max_valence < 6 || max_valence > 250) errors.push_back("max_valence must be in [6, 250]");
+  if (bulk_patch_points < 3) errors.push_back("bulk_patch_points must be at least 3");
   return errors;
 }
 

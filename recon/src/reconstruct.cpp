@@ -233,6 +233,8 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.skipped_evaluations = fr.skipped_evaluations;
   res.seed_attempts = fr.seed_attempts;
   res.turning_points = fr.turning_points;
+  res.bulk_patches = fr.bulk_patches;
+  res.bulk_triangles = fr.bulk_triangles;
   res.dropped_components = fr.dropped_components;
   if (gaps) {
     stage("gaps");

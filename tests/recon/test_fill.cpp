@@ -40,11 +40,16 @@ void check_closed_outward_sphere(const Mesh& m) {
 }
 
 /// The reconstruction of 6000 points of a sphere with the cap above z = cut left out: one hole.
+/// The hole's border is the front's (no bulk patches): the figures below were measured on it,
+/// and the bulk moves the loop's vertices (the fill of its loop has one longer edge, 4.2 times
+/// the loop's mean edge instead of 3.3).
 Mesh capless_sphere(double radius, double cut) {
   std::vector<Vec3> pts;
   for (const Vec3& p : scanmesh::test::sphere_points(6000, radius))
     if (p.z() < cut) pts.push_back(p);
-  return scanmesh::recon::reconstruct(pts).mesh;
+  scanmesh::recon::ReconstructOptions opt;
+  opt.front.bulk = false;
+  return scanmesh::recon::reconstruct(pts, opt).mesh;
 }
 
 }  // namespace

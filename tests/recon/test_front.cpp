@@ -271,6 +271,53 @@ TEST_CASE("a jittered height field meshes whole; edges without candidates are no
   CHECK(r.skipped_evaluations > 0);
 }
 
+// The bulk: planar Delaunay patches (normals within a 30-degree cone) give most triangles of a
+// gently curved surface; the front starts from their borders, zips the seams between patches
+// and meshes the rest. Same guarantees, a fraction of the front's work.
+TEST_CASE("the bulk's Delaunay patches mesh most of a height field and the front closes the seams",
+          "[recon]") {
+  ReconstructOptions opt;
+  opt.cube_mode = ReconstructOptions::CubeMode::kNone;
+  const auto pts = test::jittered_height_field(120, 7);
+  ReconstructOptions no_bulk = opt;
+  no_bulk.front.bulk = false;
+  const auto plain = reconstruct(pts, no_bulk);
+  CHECK(plain.bulk_triangles == 0);
+  // One patch; then many (at most 500 points each), so that the front has seams to close.
+  for (const std::size_t patch_points : {std::size_t{1} << 17, std::size_t{500}}) {
+    INFO("patches of at most " << patch_points << " points");
+    opt.front.bulk_patch_points = patch_points;
+    const auto r = reconstruct(pts, opt);
+    const auto rep = analyze(r.mesh);
+    require_valid(r, rep);
+    CHECK(rep.boundary_loops == 1);
+    CHECK(rep.components == 1);
+    CHECK(rep.genus == 0);
+    CHECK(find_self_intersections(r.mesh).pairs == 0);
+    CHECK(r.mesh.vertices.size() == pts.size());  // every point used
+    if (patch_points > pts.size()) CHECK(r.bulk_patches == 1);
+    else CHECK(r.bulk_patches >= pts.size() / patch_points);
+    CHECK(r.bulk_triangles > r.mesh.triangles.size() * 8 / 10);
+    CHECK(r.edge_evaluations * 3 < plain.edge_evaluations);
+  }
+}
+
+// A closed surface needs many patches (each within a 30-degree cone): they meet everywhere, and
+// the front still closes the sphere without a seam left open.
+TEST_CASE("a noisy sphere closes from bulk patches", "[recon]") {
+  auto pts = test::sphere_points(6000, 10.0);
+  test::add_noise(pts, 0.02, 5);
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(rep.boundary_loops == 0);
+  CHECK(rep.genus == 0);
+  CHECK(rep.components == 1);
+  CHECK(find_self_intersections(r.mesh).pairs == 0);
+  CHECK(r.bulk_patches >= 8);
+  CHECK(r.bulk_triangles > r.mesh.triangles.size() / 2);
+}
+
 TEST_CASE("reconstruction is deterministic", "[recon]") {
   auto pts = test::sphere_points(6000, 10.0);
   test::add_noise(pts, 0.02, 3);

@@ -49,6 +49,14 @@ struct FrontOptions {
   /// surface turns back within reach: thin walls, sharp edges) or where the front-edge tests
   /// cannot see the front near it, against every triangle near it. Off only for comparison.
   bool crossing_guard = true;
+  /// Start from the bulk: the flat, well-sampled interior (away from turning points, normals
+  /// within a 30-degree cone per patch) is triangulated by planar Delaunay patches that meet
+  /// the rules above, and the front grows from their borders into the rest. Off: the front
+  /// grows everything from seed triangles.
+  bool bulk = true;
+  /// A bulk patch stops growing at this many points (one patch's triangulation is live at a
+  /// time: this bounds the stage's memory).
+  std::size_t bulk_patch_points = std::size_t{1} << 17;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
@@ -68,6 +76,8 @@ struct FrontResult {
   /// nothing).
   std::size_t skipped_evaluations = 0;
   std::size_t seed_attempts = 0;
+  std::size_t bulk_patches = 0;    ///< planar Delaunay patches the front started from
+  std::size_t bulk_triangles = 0;  ///< triangles they gave
   std::size_t turning_points = 0;  ///< points near which the surface turns back (crossing guard)
   /// Small components removed because they crossed another one (their points are outliers).
   std::size_t dropped_components = 0;

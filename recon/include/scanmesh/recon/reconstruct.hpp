@@ -57,6 +57,8 @@ struct ReconstructResult {
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
   /// Front edge evaluations not run: known to find no candidate (cost counter).
   std::size_t skipped_evaluations = 0;
+  /// Planar Delaunay patches the front started from, and the triangles they gave (front.hpp).
+  std::size_t bulk_patches = 0, bulk_triangles = 0;
   std::size_t turning_points = 0;  ///< points the crossing guard tests against everything near
   /// Small components the front removed because they crossed another (points then inserted).
   std::size_t dropped_components = 0;

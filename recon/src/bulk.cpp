@@ -1,0 +1,389 @@
+// Bulk meshing: planar Delaunay triangulation of height-field patches (see bulk.hpp).
+// SPDX-License-Identifier: MIT
+#include "bulk.hpp"
+
+#include <CGAL/Delaunay_triangulation_2.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_face_base_with_info_2.h>
+#include <CGAL/Triangulation_vertex_base_with_info_2.h>
+
+#include <algorithm>
+
+#include <array>
+#include <cmath>
+#include <numbers>
+
+namespace scanmesh::recon::detail {
+namespace {
+
+constexpr std::uint32_t kNone = 0xffffffffu;
+
+struct VertexInfo {
+  std::uint32_t point = kNone;
+  std::uint32_t cell = kNone;  // index into the patch's cells
+  std::uint16_t degree = 0;  // kept faces around the vertex (before the fan repairs)
+  bool queued = false;
+  bool border = false;  // on the border of the kept triangles
+};
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Vb = CGAL::Triangulation_vertex_base_with_info_2<VertexInfo, Kernel>;
+using Fb = CGAL::Triangulation_face_base_with_info_2<std::uint8_t, Kernel>;  // 1: kept
+using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
+using Delaunay = CGAL::Delaunay_triangulation_2<Kernel, Tds>;
+
+struct Cell {
+  std::uint64_t key;  // z << 42 | y << 21 | x: cells come in this order from the grid
+  std::uint32_t first, last;
+  Eigen::Vector3f mean;  // mean normal of its eligible points (unit)
+  bool ok = false;       // it has eligible points
+};
+
+std::uint64_t cell_key(std::int64_t x, std::int64_t y, std::int64_t z) {
+  return (static_cast<std::uint64_t>(z) << 42) | (static_cast<std::uint64_t>(y) << 21) |
+         static_cast<std::uint64_t>(x);
+}
+
+class Bulk {
+ public:
+  Bulk(std::span<const Vec3> p, const LocalFrames& f, const PointGrid& g,
+       std::span<const std::uint8_t> excluded, const BulkOptions& o, BulkMesh& out, BulkStats& s)
+      : p_(p), f_(f), grid_(g), excluded_(excluded), opt_(o), stats_(s), out_(out),
+        first_triangle_(out.triangles.size()) {}
+
+  void run() {
+    collect_cells();
+    patch_of_.assign(cells_.size(), kNone);
+    slot_patch_.assign(p_.size(), kNone);
+    const auto cos_theta = static_cast<float>(std::cos(opt_.patch_cone_deg * std::numbers::pi / 180));
+    cos_theta_ = cos_theta;
+    std::vector<std::uint32_t> patch;
+    std::uint32_t next_id = 0;
+    for (std::uint32_t c = 0; c < cells_.size(); ++c) {
+      if (!cells_[c].ok || patch_of_[c] != kNone) continue;
+      // Grow a patch breadth-first from c (cells in key order): a neighbour joins when its mean
+      // normal lies within the cone around c's; its points outside the cone stay out.
+      const std::uint32_t id = next_id++;
+      const Eigen::Vector3f dir = cells_[c].mean;
+      patch.clear();
+      patch.push_back(c);
+      assign(c, id);
+      std::size_t count = cells_[c].last - cells_[c].first;
+      for (std::size_t head = 0; head < patch.size(); ++head) {
+        for_each_neighbour(patch[head], [&](std::uint32_t d) {
+          const Cell& cd = cells_[d];
+          if (!cd.ok || patch_of_[d] != kNone || count >= opt_.max_patch_points) return;
+          if (cd.mean.dot(dir) < cos_theta) return;
+          assign(d, id);
+          patch.push_back(d);
+          count += cd.last - cd.first;
+        });
+      }
+      if (count < 3) continue;  // left to the front; its cells stay marked (not re-grown)
+      ++stats_.patches;
+      stats_.patch_points += count;
+      std::sort(patch.begin(), patch.end());  // grid order: the insertion walks short steps
+      triangulate(patch, id, dir.cast<double>());
+    }
+    stats_.triangles = out_.triangles.size() - first_triangle_;
+  }
+
+ private:
+  void collect_cells() {
+    const std::vector<std::uint32_t>& order = grid_.order();
+    grid_.for_each_cell([&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first,
+                            std::uint32_t last) {
+      Cell c{cell_key(x, y, z), first, last, Eigen::Vector3f(0, 0, 1), false};
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      for (std::uint32_t s = first; s < last; ++s)
+        if (eligible(order[s])) sum += f_.normal[order[s]];
+      const float len = sum.norm();
+      if (len > 0) {
+        c.mean = sum / len;
+        c.ok = true;
+      }
+      cells_.push_back(c);
+    });
+  }
+
+  [[nodiscard]] bool eligible(std::uint32_t v) const { return excluded_.empty() || excluded_[v] == 0; }
+
+  template <class F>
+  void for_each_neighbour(std::uint32_t c, F&& f) const {
+    const std::uint64_t key = cells_[c].key;
+    const auto x = static_cast<std::int64_t>(key & kMask), y = static_cast<std::int64_t>((key >> 21) & kMask),
+               z = static_cast<std::int64_t>(key >> 42);
+    for (std::int64_t dz = -1; dz <= 1; ++dz)
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        // The row's three cells are consecutive keys: one search per row.
+        if (y + dy < 0 || z + dz < 0) continue;
+        const std::uint64_t lo = cell_key(std::max<std::int64_t>(x - 1, 0), y + dy, z + dz);
+        const std::uint64_t hi = cell_key(x + 1, y + dy, z + dz);
+        auto it = std::lower_bound(cells_.begin(), cells_.end(), lo,
+                                   [](const Cell& q, std::uint64_t k) { return q.key < k; });
+        for (; it != cells_.end() && it->key <= hi; ++it) {
+          const auto d = static_cast<std::uint32_t>(it - cells_.begin());
+          if (d != c) f(d);
+        }
+      }
+  }
+
+  void assign(std::uint32_t c, std::uint32_t id) { patch_of_[c] = id; }
+
+  [[nodiscard]] double spacing(std::uint32_t v) const {
+    return std::min<double>(f_.spacing[v], opt_.spacing_cap);
+  }
+
+  /// Whether a point outside patch `id` lies strictly inside the circumsphere of (a, b, c).
+  [[nodiscard]] bool foreign_inside(const Vec3& a, const Vec3& b, const Vec3& c, std::uint32_t id) const {
+    const Vec3 u = a - c, w = b - c;
+    const Vec3 uxw = u.cross(w);
+    const double d = 2 * uxw.squaredNorm();
+    if (!(d > 0)) return true;
+    const Vec3 centre = c + (u.squaredNorm() * w - w.squaredNorm() * u).cross(uxw) / d;
+    const double r2 = (a - centre).squaredNorm() * (1 - 1e-9);
+    const std::vector<std::uint32_t>& order = grid_.order();
+    bool found = false;
+    grid_.for_each_range_within(centre, std::sqrt(r2), [&](std::uint32_t first, std::uint32_t last) {
+      for (std::uint32_t s = first; s < last && !found; ++s)
+        if (slot_patch_[s] != id && (p_[order[s]] - centre).squaredNorm() < r2) found = true;
+    });
+    return found;
+  }
+
+  void triangulate(const std::vector<std::uint32_t>& patch, std::uint32_t id, const Vec3& dir) {
+    // A right-handed frame (u, v, dir): counter-clockwise in (u, v) is oriented with the normals.
+    const Vec3 helper = std::abs(dir.x()) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+    const Vec3 u = helper.cross(dir).normalized();
+    const Vec3 v = dir.cross(u);
+    const std::vector<std::uint32_t>& order = grid_.order();
+    const Eigen::Vector3f dir_f = dir.cast<float>();
+    Delaunay dt;
+    Delaunay::Face_handle hint;
+    for (std::size_t i = 0; i < patch.size(); ++i) {
+      const Cell& c = cells_[patch[i]];
+      for (std::uint32_t s = c.first; s < c.last; ++s) {
+        const std::uint32_t pt = order[s];
+        // Turning points and normals outside the patch's cone are left to the front.
+        if (!eligible(pt) || f_.normal[pt].dot(dir_f) < cos_theta_) continue;
+        const std::size_t before = dt.number_of_vertices();
+        const Delaunay::Vertex_handle vh = dt.insert(Kernel::Point_2(p_[pt].dot(u), p_[pt].dot(v)), hint);
+        hint = vh->face();
+        // A point whose projection repeats one already in: left to the front.
+        if (dt.number_of_vertices() == before) continue;
+        vh->info() = {pt, static_cast<std::uint32_t>(i), 0, false, false};
+        slot_patch_[s] = id;
+      }
+    }
+    if (dt.dimension() < 2) {  // too few points, or all in one line: left to the front
+      for (const std::uint32_t c : patch)
+        for (std::uint32_t s = cells_[c].first; s < cells_[c].last; ++s) slot_patch_[s] = kNone;
+      return;
+    }
+    // inner: the cell's points and those of every occupied neighbour cell are all in the
+    // triangulation, so no point outside it can lie in a triangle between its points.
+    std::vector<std::uint8_t> clean(patch.size(), 1);
+    for (std::size_t i = 0; i < patch.size(); ++i)
+      for (std::uint32_t s = cells_[patch[i]].first; s < cells_[patch[i]].last; ++s)
+        if (slot_patch_[s] != id) clean[i] = 0;
+    std::vector<std::uint8_t> inner(clean);
+    for (std::size_t i = 0; i < patch.size(); ++i)
+      for_each_neighbour(patch[i], [&](std::uint32_t d) {
+        if (patch_of_[d] != id) {
+          inner[i] = 0;
+          return;
+        }
+        const auto at = static_cast<std::size_t>(std::lower_bound(patch.begin(), patch.end(), d) - patch.begin());
+        if (!clean[at]) inner[i] = 0;
+      });
+    const double cell = grid_.cell();
+    auto corner = [&](Delaunay::Face_handle fh, int k) { return fh->vertex(k)->info(); };
+    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
+      fh->info() = 0;
+      const std::array<VertexInfo, 3> vi = {corner(fh, 0), corner(fh, 1), corner(fh, 2)};
+      const Vec3 &a = p_[vi[0].point], &b = p_[vi[1].point], &c = p_[vi[2].point];
+      const Vec3 e[3] = {c - b, a - c, b - a};  // edge k is opposite corner k
+      double len2[3];
+      bool ok = true;
+      double longest2 = 0;
+      for (int k = 0; k < 3 && ok; ++k) {
+        len2[k] = e[k].squaredNorm();
+        const double r = opt_.radius_factor *
+                         std::max(spacing(vi[(k + 1) % 3].point), spacing(vi[(k + 2) % 3].point));
+        ok = len2[k] > 0 && len2[k] <= r * r;
+        longest2 = std::max(longest2, len2[k]);
+      }
+      if (!ok) continue;
+      // Interior angles: the cosine at corner k is -e[k+1].e[k+2] / (|e[k+1]| |e[k+2]|).
+      for (int k = 0; k < 3 && ok; ++k) {
+        const Vec3& p = e[(k + 1) % 3];
+        const Vec3& q = e[(k + 2) % 3];
+        ok = -p.dot(q) <= opt_.cos_min_angle * std::sqrt(len2[(k + 1) % 3] * len2[(k + 2) % 3]);
+      }
+      if (!ok) continue;
+      const Vec3 n = (b - a).cross(c - a).normalized();
+      for (int k = 0; k < 3 && ok; ++k)
+        ok = f_.normal[vi[k].point].cast<double>().dot(n) >= opt_.cos_corner;
+      if (!ok) continue;
+      // Near the patch's border (or longer than a cell), a point of another patch or a point
+      // the patch left out could lie in the triangle: the circumsphere must hold none.
+      const bool sheltered = inner[vi[0].cell] && inner[vi[1].cell] && inner[vi[2].cell] &&
+                             longest2 <= cell * cell;
+      if (!sheltered && foreign_inside(a, b, c, id)) continue;
+      fh->info() = 1;
+    }
+    // No fold between neighbours.
+    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
+      if (!(fh->info() & 1)) continue;
+      const Vec3 n = normal(fh);
+      for (int k = 0; k < 3; ++k) {
+        const Delaunay::Face_handle g = fh->neighbor(k);
+        if (dt.is_infinite(g) || !(g->info() & 1)) continue;
+        if (n.dot(normal(g)) <= opt_.cos_dihedral) {
+          fh->info() |= 2;  // dropped below (both of the pair)
+          g->info() |= 2;
+        }
+      }
+    }
+    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh)
+      if (fh->info() & 2) fh->info() = 0;
+    // One fan per vertex, of at most max_valence edges. Dropping faces changes the fans of
+    // their corners, so those are examined again.
+    // Only vertices beside a face not kept (or on the hull) can have several fans; a closed fan
+    // only needs its size checked.
+    std::vector<Delaunay::Vertex_handle> queue;
+    auto enqueue = [&](Delaunay::Vertex_handle w) {
+      if (dt.is_infinite(w) || w->info().queued) return;
+      w->info().queued = true;
+      queue.push_back(w);
+    };
+    for (auto fh = dt.all_faces_begin(); fh != dt.all_faces_end(); ++fh) {
+      if (!dt.is_infinite(fh) && (fh->info() & 1)) {
+        for (int k = 0; k < 3; ++k) ++fh->vertex(k)->info().degree;
+      } else {
+        for (int k = 0; k < 3; ++k) enqueue(fh->vertex(k));
+      }
+    }
+    for (auto vh = dt.finite_vertices_begin(); vh != dt.finite_vertices_end(); ++vh)
+      if (vh->info().degree > opt_.max_valence) enqueue(vh);
+    std::vector<Delaunay::Face_handle> ring;
+    while (!queue.empty()) {
+      const Delaunay::Vertex_handle vh = queue.back();
+      queue.pop_back();
+      vh->info().queued = false;
+      ring.clear();
+      Delaunay::Face_circulator fc = dt.incident_faces(vh), done = fc;
+      do {
+        ring.push_back(fc);
+      } while (++fc != done);
+      auto kept = [&](const Delaunay::Face_handle& fh) { return !dt.is_infinite(fh) && (fh->info() & 1); };
+      const std::size_t m = ring.size();
+      std::size_t start = m;
+      for (std::size_t i = 0; i < m; ++i)
+        if (!kept(ring[i])) {
+          start = i;
+          break;
+        }
+      std::size_t total = 0, runs = 0, best_len = 0, best_at = 0;
+      if (start == m) {  // a closed fan
+        if (static_cast<int>(m) <= opt_.max_valence) continue;
+        total = m;
+      } else {
+        for (std::size_t i = 0; i < m;) {
+          const std::size_t at = (start + i) % m;
+          if (!kept(ring[at])) {
+            ++i;
+            continue;
+          }
+          std::size_t len = 0;
+          while (i < m && kept(ring[(start + i) % m])) {
+            ++len;
+            ++i;
+          }
+          ++runs;
+          total += len;
+          if (len > best_len) {
+            best_len = len;
+            best_at = at;
+          }
+        }
+        if (runs <= 1 && static_cast<int>(best_len) + 1 <= opt_.max_valence) continue;
+      }
+      // Too many edges: drop the whole fan; several fans: keep the largest.
+      const bool keep_best = start != m && static_cast<int>(best_len) + 1 <= opt_.max_valence;
+      for (std::size_t i = 0; i < m; ++i) {
+        const Delaunay::Face_handle fh = ring[i];
+        if (!kept(fh)) continue;
+        if (keep_best && ((i + m - best_at) % m) < best_len) continue;
+        fh->info() = 0;
+        for (int k = 0; k < 3; ++k) {
+          const Delaunay::Vertex_handle w = fh->vertex(k);
+          if (w != vh && !w->info().queued && w->info().point != kNone) {
+            w->info().queued = true;
+            queue.push_back(w);
+          }
+        }
+      }
+      (void)total;
+    }
+    // Output: the kept faces, their border edges (across from a face not kept), and the chords
+    // between border vertices.
+    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
+      if (!(fh->info() & 1)) continue;
+      const std::uint32_t q[3] = {fh->vertex(0)->info().point, fh->vertex(1)->info().point,
+                                  fh->vertex(2)->info().point};
+      out_.triangles.push_back({q[0], q[1], q[2]});
+      for (int k = 0; k < 3; ++k) {
+        const Delaunay::Face_handle g = fh->neighbor(k);
+        if (!dt.is_infinite(g) && (g->info() & 1)) continue;
+        out_.border.push_back({q[(k + 1) % 3], q[(k + 2) % 3], q[k]});
+        fh->vertex((k + 1) % 3)->info().border = true;
+        fh->vertex((k + 2) % 3)->info().border = true;
+      }
+    }
+    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
+      if (!(fh->info() & 1)) continue;
+      for (int k = 0; k < 3; ++k) {
+        const Delaunay::Face_handle g = fh->neighbor(k);
+        if (dt.is_infinite(g) || !(g->info() & 1) || &*g < &*fh) continue;  // once per edge
+        const VertexInfo& x = fh->vertex((k + 1) % 3)->info();
+        const VertexInfo& y = fh->vertex((k + 2) % 3)->info();
+        if (x.border && y.border) out_.border_chords.push_back({x.point, y.point});
+      }
+    }
+  }
+
+  [[nodiscard]] Vec3 normal(const Delaunay::Face_handle& fh) const {
+    const Vec3 &a = p_[fh->vertex(0)->info().point], &b = p_[fh->vertex(1)->info().point],
+               &c = p_[fh->vertex(2)->info().point];
+    return (b - a).cross(c - a).normalized();
+  }
+
+  static constexpr std::uint64_t kMask = (std::uint64_t{1} << 21) - 1;
+  std::span<const Vec3> p_;
+  const LocalFrames& f_;
+  const PointGrid& grid_;
+  std::span<const std::uint8_t> excluded_;
+  const BulkOptions& opt_;
+  BulkStats& stats_;
+  std::vector<Cell> cells_;
+  std::vector<std::uint32_t> patch_of_;   // per cell
+  std::vector<std::uint32_t> slot_patch_;  // per grid slot: the patch of the point's cell
+  BulkMesh& out_;
+  std::size_t first_triangle_;
+  float cos_theta_ = 1;
+};
+
+}  // namespace
+
+void bulk_triangles(std::span<const Vec3> points, const LocalFrames& frames, const PointGrid& grid,
+                    std::span<const std::uint8_t> excluded, const BulkOptions& options,
+                    BulkMesh& out, BulkStats& stats) {
+  stats = {};
+  out.border.clear();
+  out.border_chords.clear();
+  if (points.size() < 3 || grid.empty()) return;
+  Bulk(points, frames, grid, excluded, options, out, stats).run();
+}
+
+}  // namespace scanmesh::recon::detail

@@ -1,0 +1,66 @@
+// Bulk meshing of the flat, well-sampled interior: planar Delaunay triangulation of patches
+// over which the surface is a height field, for the advancing front to start from.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "scanmesh/recon/grid.hpp"
+#include "scanmesh/recon/mesh.hpp"
+#include "scanmesh/recon/normals.hpp"
+
+namespace scanmesh::recon::detail {
+
+struct BulkOptions {
+  /// The front's rules, which every bulk triangle meets: edges at most radius_factor times the
+  /// larger (capped) local spacing of their end points, no angle under the minimum, no fold
+  /// between neighbours (normals' dot product above cos_dihedral), and every corner's normal
+  /// within the bent-triangle angle of the triangle's.
+  double radius_factor = 2.0;
+  double cos_min_angle = 0.9396926207859084;  // cos 20 degrees
+  double cos_dihedral = 0.0;                  // cos (180 - 90) degrees
+  double cos_corner = 0.8660254037844387;     // cos 30 degrees
+  double spacing_cap = 0;                     // the front's cap on the local spacing (> 0)
+  int max_valence = 16;
+  /// Every point of a patch has its normal within this angle of the patch's direction, so the
+  /// patch is a height field over the plane normal to it (locally).
+  double patch_cone_deg = 30;
+  /// Patches stop growing at this many points: the triangulation of one patch is live at a
+  /// time, so this bounds the stage's memory.
+  std::size_t max_patch_points = std::size_t{1} << 17;
+};
+
+/// The bulk's triangles and their border: the front's starting point.
+struct BulkMesh {
+  std::vector<Triangle> triangles;  ///< oriented with the normals (counter-clockwise seen from them)
+  /// Border edges as the front takes them: {a, b, opp}, directed a -> b as in their triangle
+  /// (a, b, opp), so the mesh lies on their left.
+  std::vector<std::array<std::uint32_t, 3>> border;
+  /// Edges of two triangles whose end points are both on the border (the front must know
+  /// them; the other interior edges it never meets).
+  std::vector<std::array<std::uint32_t, 2>> border_chords;
+};
+
+struct BulkStats {
+  std::size_t patches = 0;        ///< patches triangulated
+  std::size_t patch_points = 0;   ///< points in them
+  std::size_t triangles = 0;      ///< triangles kept
+};
+
+/// Triangles over the patches: grid cells without excluded points (turning points and points
+/// near them) whose normals lie in a cone, grown cell by cell; each patch is projected on the
+/// plane normal to its direction and triangulated (Delaunay, exact predicates). A triangle is
+/// kept when it meets the front's rules (above) and no point outside its patch lies in its
+/// circumsphere (tested where the triangle comes near the patch's border); then every vertex
+/// is left with a single fan of at most max_valence edges. The triangles are oriented with the
+/// normals, vertex-manifold, and cross nothing. `out.triangles` is appended to (so the caller
+/// can hand over storage it has reserved); the other lists are replaced. Deterministic.
+void bulk_triangles(std::span<const Vec3> points, const LocalFrames& frames, const PointGrid& grid,
+                    std::span<const std::uint8_t> excluded, const BulkOptions& options,
+                    BulkMesh& out, BulkStats& stats);
+
+}  // namespace scanmesh::recon::detail
