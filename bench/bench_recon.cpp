@@ -143,6 +143,7 @@ double seconds_between(Clock::time_point a, Clock::time_point b) {
 struct Figures {
   std::size_t input_points = 0, reduced_points = 0, triangles = 0;
   std::size_t edge_evaluations = 0, points_scanned = 0, skipped_evaluations = 0;
+  std::size_t bulk_patches = 0, bulk_triangles = 0;
   double cube_mm = 0;
   // Seconds. read is NaN for generated inputs (gen holds the generation time instead).
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
@@ -198,6 +199,9 @@ std::optional<Loaded> load_bunny_merged() {
   }
   return l;
 }
+
+/// --no-bulk: every case meshed by the front alone (FrontOptions::bulk off), for A/B runs.
+bool g_no_bulk = false;
 
 std::optional<Loaded> load_igea() { return load_xyz("igea/igea_vertices.xyz"); }
 
@@ -267,6 +271,7 @@ Figures run_once(const Case& c, bool& available) {
 
   recon::ReconstructOptions opt;
   opt.cube_mode = c.cube;
+  opt.front.bulk = !g_no_bulk;
   // Stage start times, filled by the observer; index by position in kStages.
   static constexpr std::string_view kStages[] = {"reduce", "normals", "front", "refine",
                                                   "output", "gaps",    "done"};
@@ -312,6 +317,8 @@ Figures run_once(const Case& c, bool& available) {
   f.edge_evaluations = res->edge_evaluations;
   f.points_scanned = res->points_scanned;
   f.skipped_evaluations = res->skipped_evaluations;
+  f.bulk_patches = res->bulk_patches;
+  f.bulk_triangles = res->bulk_triangles;
   f.cube_mm = res->cube_mm;
   f.peak_case_bytes = std::max(peak_load, peak_recon) - base;
   f.peak_recon_bytes = peak_recon - recon_base;
@@ -456,10 +463,13 @@ void print_row(const Outcome& o) {
     std::snprintf(cube, sizeof cube, "%s", cube_name(o.c->cube));
   std::printf(
       "%-13s   cube %s; insertion %s ms (%zu points; %zu slivers, %zu flips to mend them); "
-      "output %s ms; sampling gaps %zu closed in %s ms; %zu triangles; %.1f edge evals (%.1f "
+      "output %s ms; sampling gaps %zu closed in %s ms; %zu triangles (%.1f %% from %zu bulk "
+      "patches); %.1f edge evals (%.1f "
       "skipped: no candidate before) and %.1f points scanned per reduced pt; heap peak %.1f MiB",
       "", cube, fmt_ms(f.refine_s).c_str(), f.inserted, f.slivers, f.sliver_flips,
       fmt_ms(f.output_s).c_str(), f.closed_gaps, fmt_ms(f.gaps_s).c_str(), f.triangles,
+      f.triangles > 0 ? 100.0 * static_cast<double>(f.bulk_triangles) / static_cast<double>(f.triangles) : kNaN,
+      f.bulk_patches,
       red > 0 ? static_cast<double>(f.edge_evaluations) / red : kNaN,
       red > 0 ? static_cast<double>(f.skipped_evaluations) / red : kNaN,
       red > 0 ? static_cast<double>(f.points_scanned) / red : kNaN,
@@ -515,16 +525,19 @@ std::string json_line(const Outcome& o, int repeat) {
   s += ",\"edge_evaluations\":" + std::to_string(f.edge_evaluations);
   s += ",\"points_scanned\":" + std::to_string(f.points_scanned);
   s += ",\"skipped_evaluations\":" + std::to_string(f.skipped_evaluations);
+  s += ",\"bulk_patches\":" + std::to_string(f.bulk_patches);
+  s += ",\"bulk_triangles\":" + std::to_string(f.bulk_triangles);
   s += ",\"max_rss_bytes\":" + std::to_string(o.max_rss) + "}";
   return s;
 }
 
 void usage(const char* argv0) {
   std::printf(
-      "usage: %s [--case NAME]... [--repeat N] [--json]\n"
+      "usage: %s [--case NAME]... [--repeat N] [--json] [--no-bulk]\n"
       "  --case NAME   run only this case (repeatable): bunny, bunny-merged, igea, synthetic-2m\n"
       "  --repeat N    repetitions per case, best time reported (default 3)\n"
       "  --json        also print the results as JSON lines\n"
+      "  --no-bulk     the front alone, without the planar Delaunay patches (for comparison)\n"
       "Real scans are read from $SCANMESH_DATA; without it those cases are skipped.\n",
       argv0);
 }
@@ -543,6 +556,8 @@ int main(int argc, char** argv) {
       return 0;
     } else if (a == "--json") {
       json = true;
+    } else if (a == "--no-bulk") {
+      g_no_bulk = true;
     } else if ((a == "--case" || a == "--repeat") && i + 1 < argc) {
       const std::string v = argv[++i];
       if (a == "--case") {
