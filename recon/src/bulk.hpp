@@ -51,9 +51,10 @@ struct BulkStats {
   std::size_t triangles = 0;      ///< triangles kept
 };
 
-/// Triangles over the patches: grid cells without excluded points (turning points and points
-/// near them) whose normals lie in a cone, grown cell by cell; each patch is projected on the
-/// plane normal to its direction and triangulated (Delaunay, exact predicates). A triangle is
+/// Triangles over the patches: grid cells grown breadth-first while the mean normal of their
+/// eligible points (not `excluded`: turning points and points near them) stays within the cone
+/// around the first cell's; each patch's eligible points with normals in the cone are projected
+/// on the plane normal to its direction and triangulated (Delaunay, exact predicates). A triangle is
 /// kept when it meets the front's rules (above) and no point outside its patch lies in its
 /// circumsphere (tested where the triangle comes near the patch's border); then every vertex
 /// is left with a single fan of at most max_valence edges. The triangles are oriented with the
