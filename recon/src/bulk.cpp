@@ -28,7 +28,11 @@ struct VertexInfo {
 
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Vb = CGAL::Triangulation_vertex_base_with_info_2<VertexInfo, Kernel>;
-using Fb = CGAL::Triangulation_face_base_with_info_2<std::uint8_t, Kernel>;  // 1: kept
+struct FaceInfo {
+  bool kept = false;
+  Eigen::Vector3f normal;  // unit normal of a face that passed the rules
+};
+using Fb = CGAL::Triangulation_face_base_with_info_2<FaceInfo, Kernel>;
 using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
 using Delaunay = CGAL::Delaunay_triangulation_2<Kernel, Tds>;
 
@@ -199,7 +203,7 @@ class Bulk {
     const double cell = grid_.cell();
     auto corner = [&](Delaunay::Face_handle fh, int k) { return fh->vertex(k)->info(); };
     for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
-      fh->info() = 0;
+      fh->info().kept = false;
       const std::array<VertexInfo, 3> vi = {corner(fh, 0), corner(fh, 1), corner(fh, 2)};
       const Vec3 &a = p_[vi[0].point], &b = p_[vi[1].point], &c = p_[vi[2].point];
       const Vec3 e[3] = {c - b, a - c, b - a};  // edge k is opposite corner k
@@ -230,39 +234,38 @@ class Bulk {
       const bool sheltered = inner[vi[0].cell] && inner[vi[1].cell] && inner[vi[2].cell] &&
                              longest2 <= cell * cell;
       if (!sheltered && foreign_inside(a, b, c, id)) continue;
-      fh->info() = 1;
+      fh->info() = {true, n.cast<float>()};
     }
-    // No fold between neighbours.
-    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
-      if (!(fh->info() & 1)) continue;
-      const Vec3 n = normal(fh);
-      for (int k = 0; k < 3; ++k) {
-        const Delaunay::Face_handle g = fh->neighbor(k);
-        if (dt.is_infinite(g) || !(g->info() & 1)) continue;
-        if (n.dot(normal(g)) <= opt_.cos_dihedral) {
-          fh->info() |= 2;  // dropped below (both of the pair)
-          g->info() |= 2;
-        }
-      }
-    }
-    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh)
-      if (fh->info() & 2) fh->info() = 0;
-    // One fan per vertex, of at most max_valence edges. Dropping faces changes the fans of
-    // their corners, so those are examined again.
-    // Only vertices beside a face not kept (or on the hull) can have several fans; a closed fan
-    // only needs its size checked.
+    // No fold between kept neighbours (both faces of such a pair are dropped), and the fans to
+    // examine: only vertices beside a face not kept (or on the hull) can have several fans; a
+    // closed fan only needs its size checked. One pass: a face dropped here queues its corners.
     std::vector<Delaunay::Vertex_handle> queue;
     auto enqueue = [&](Delaunay::Vertex_handle w) {
       if (dt.is_infinite(w) || w->info().queued) return;
       w->info().queued = true;
       queue.push_back(w);
     };
+    auto drop = [&](Delaunay::Face_handle fh) {
+      fh->info().kept = false;
+      for (int k = 0; k < 3; ++k) enqueue(fh->vertex(k));
+    };
+    const auto cos_fold = static_cast<float>(opt_.cos_dihedral);
     for (auto fh = dt.all_faces_begin(); fh != dt.all_faces_end(); ++fh) {
-      if (!dt.is_infinite(fh) && (fh->info() & 1)) {
-        for (int k = 0; k < 3; ++k) ++fh->vertex(k)->info().degree;
-      } else {
+      if (dt.is_infinite(fh) || !fh->info().kept) {
         for (int k = 0; k < 3; ++k) enqueue(fh->vertex(k));
+        continue;
       }
+      for (int k = 0; k < 3 && fh->info().kept; ++k) {
+        const Delaunay::Face_handle g = fh->neighbor(k);
+        if (dt.is_infinite(g) || !g->info().kept) continue;
+        if (fh->info().normal.dot(g->info().normal) <= cos_fold) {
+          drop(fh);
+          drop(g);
+        }
+      }
+      // Counted before a later neighbour may drop it: an upper bound, enough to find the fans
+      // that may be too large (the walk below counts exactly).
+      for (int k = 0; k < 3; ++k) ++fh->vertex(k)->info().degree;
     }
     for (auto vh = dt.finite_vertices_begin(); vh != dt.finite_vertices_end(); ++vh)
       if (vh->info().degree > opt_.max_valence) enqueue(vh);
@@ -276,7 +279,7 @@ class Bulk {
       do {
         ring.push_back(fc);
       } while (++fc != done);
-      auto kept = [&](const Delaunay::Face_handle& fh) { return !dt.is_infinite(fh) && (fh->info() & 1); };
+      auto kept = [&](const Delaunay::Face_handle& fh) { return !dt.is_infinite(fh) && fh->info().kept; };
       const std::size_t m = ring.size();
       std::size_t start = m;
       for (std::size_t i = 0; i < m; ++i)
@@ -315,7 +318,7 @@ class Bulk {
         const Delaunay::Face_handle fh = ring[i];
         if (!kept(fh)) continue;
         if (keep_best && ((i + m - best_at) % m) < best_len) continue;
-        fh->info() = 0;
+        fh->info().kept = false;
         for (int k = 0; k < 3; ++k) {
           const Delaunay::Vertex_handle w = fh->vertex(k);
           if (w != vh && !w->info().queued && w->info().point != kNone) {
@@ -329,23 +332,23 @@ class Bulk {
     // Output: the kept faces, their border edges (across from a face not kept), and the chords
     // between border vertices.
     for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
-      if (!(fh->info() & 1)) continue;
+      if (!fh->info().kept) continue;
       const std::uint32_t q[3] = {fh->vertex(0)->info().point, fh->vertex(1)->info().point,
                                   fh->vertex(2)->info().point};
       out_.triangles.push_back({q[0], q[1], q[2]});
       for (int k = 0; k < 3; ++k) {
         const Delaunay::Face_handle g = fh->neighbor(k);
-        if (!dt.is_infinite(g) && (g->info() & 1)) continue;
+        if (!dt.is_infinite(g) && g->info().kept) continue;
         out_.border.push_back({q[(k + 1) % 3], q[(k + 2) % 3], q[k]});
         fh->vertex((k + 1) % 3)->info().border = true;
         fh->vertex((k + 2) % 3)->info().border = true;
       }
     }
     for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
-      if (!(fh->info() & 1)) continue;
+      if (!fh->info().kept) continue;
       for (int k = 0; k < 3; ++k) {
         const Delaunay::Face_handle g = fh->neighbor(k);
-        if (dt.is_infinite(g) || !(g->info() & 1) || &*g < &*fh) continue;  // once per edge
+        if (dt.is_infinite(g) || !g->info().kept || &*g < &*fh) continue;  // once per edge
         const VertexInfo& x = fh->vertex((k + 1) % 3)->info();
         const VertexInfo& y = fh->vertex((k + 2) % 3)->info();
         if (x.border && y.border) out_.border_chords.push_back({x.point, y.point});
@@ -353,11 +356,6 @@ class Bulk {
     }
   }
 
-  [[nodiscard]] Vec3 normal(const Delaunay::Face_handle& fh) const {
-    const Vec3 &a = p_[fh->vertex(0)->info().point], &b = p_[fh->vertex(1)->info().point],
-               &c = p_[fh->vertex(2)->info().point];
-    return (b - a).cross(c - a).normalized();
-  }
 
   static constexpr std::uint64_t kMask = (std::uint64_t{1} << 21) - 1;
   std::span<const Vec3> p_;
