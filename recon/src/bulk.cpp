@@ -287,10 +287,9 @@ class Bulk {
           start = i;
           break;
         }
-      std::size_t total = 0, runs = 0, best_len = 0, best_at = 0;
+      std::size_t runs = 0, best_len = 0, best_at = 0;
       if (start == m) {  // a closed fan
         if (static_cast<int>(m) <= opt_.max_valence) continue;
-        total = m;
       } else {
         for (std::size_t i = 0; i < m;) {
           const std::size_t at = (start + i) % m;
@@ -304,7 +303,6 @@ class Bulk {
             ++i;
           }
           ++runs;
-          total += len;
           if (len > best_len) {
             best_len = len;
             best_at = at;
@@ -319,15 +317,9 @@ class Bulk {
         if (!kept(fh)) continue;
         if (keep_best && ((i + m - best_at) % m) < best_len) continue;
         fh->info().kept = false;
-        for (int k = 0; k < 3; ++k) {
-          const Delaunay::Vertex_handle w = fh->vertex(k);
-          if (w != vh && !w->info().queued && w->info().point != kNone) {
-            w->info().queued = true;
-            queue.push_back(w);
-          }
-        }
+        for (int k = 0; k < 3; ++k)
+          if (fh->vertex(k) != vh) enqueue(fh->vertex(k));
       }
-      (void)total;
     }
     // Output: the kept faces, their border edges (across from a face not kept), and the chords
     // between border vertices.

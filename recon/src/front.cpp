@@ -357,6 +357,15 @@ class Builder {
     return ccw_turn(p_[e.a] - p_[e.b], p_[n.b] - p_[e.b], nb);
   }
   void push(std::uint32_t eid) { push_touched(&eid, 1); }
+  /// Links every front edge to the outgoing edge at its end (each vertex has one fan, hence at
+  /// most one outgoing edge).
+  void link_loops() {
+    for (std::uint32_t id = 0; id < edges_.size(); ++id) {
+      const std::uint32_t nx = head_out_[edges_[id].b];
+      edges_[id].next = nx;
+      edges_[nx].prev = id;
+    }
+  }
   /// Queues several edges (those a new triangle touched): neighbours share end points, so each
   /// end turn is computed once (an edge's key needs the turns at both of its ends).
   void push_touched(const std::uint32_t* ids, std::size_t count) {
@@ -1422,12 +1431,8 @@ void Builder::rebuild_front() {
       i = j;
     }
   }
-  // Link loops: after repair_fans every vertex has one fan, hence at most one outgoing edge.
-  for (std::uint32_t id = 0; id < edges_.size(); ++id) {
-    const std::uint32_t nx = head_out_[edges_[id].b];
-    edges_[id].next = nx;
-    edges_[nx].prev = id;
-  }
+  // After repair_fans every vertex has one fan, hence at most one outgoing edge.
+  link_loops();
   for (std::uint32_t v = 0; v < state_.size(); ++v) {
     if (valence_[v] == 0) continue;
     update_state(v);
@@ -1734,11 +1739,7 @@ void Builder::grow_from_bulk() {
     ++valence_[a];  // an open fan of k triangles has k + 1 edges
   }
   for (const auto& [u, w] : bulk.border_chords) edges_map_.insert(u, w, kInterior);
-  for (std::uint32_t id = 0; id < edges_.size(); ++id) {
-    const std::uint32_t nx = head_out_[edges_[id].b];
-    edges_[id].next = nx;
-    edges_[nx].prev = id;
-  }
+  link_loops();  // the bulk leaves every vertex one fan
   for (const Triangle& t : tris_)
     for (std::uint32_t v : t)
       if (state_[v] == VertexState::kFree) update_state(v);

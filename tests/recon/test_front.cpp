@@ -229,6 +229,8 @@ TEST_CASE("two separate objects give two closed components", "[recon]") {
   CHECK(rep.signed_volume > 0);
 }
 
+// A closed surface needs many bulk patches (each within a 30-degree cone): they meet
+// everywhere, and the front still closes the sphere without a seam left open.
 TEST_CASE("noisy sphere still closes", "[recon]") {
   auto pts = test::sphere_points(20000, 10.0);
   test::add_noise(pts, 0.03, 7);
@@ -237,7 +239,11 @@ TEST_CASE("noisy sphere still closes", "[recon]") {
   require_valid(r, rep);
   CHECK(rep.boundary_loops == 0);
   CHECK(rep.components == 1);
+  CHECK(rep.genus == 0);
   CHECK(max_centroid_error(r.mesh, 10.0, Vec3::Zero()) < r.cube_mm);
+  CHECK(find_self_intersections(r.mesh).pairs == 0);
+  CHECK(r.bulk_patches >= 8);
+  CHECK(r.bulk_triangles > r.mesh.triangles.size() / 2);
 }
 
 TEST_CASE("cube options: none keeps every distinct point, a fixed cube reduces", "[recon]") {
@@ -300,22 +306,6 @@ TEST_CASE("the bulk's Delaunay patches mesh most of a height field and the front
     CHECK(r.bulk_triangles > r.mesh.triangles.size() * 8 / 10);
     CHECK(r.edge_evaluations * 3 < plain.edge_evaluations);
   }
-}
-
-// A closed surface needs many patches (each within a 30-degree cone): they meet everywhere, and
-// the front still closes the sphere without a seam left open.
-TEST_CASE("a noisy sphere closes from bulk patches", "[recon]") {
-  auto pts = test::sphere_points(6000, 10.0);
-  test::add_noise(pts, 0.02, 5);
-  const auto r = reconstruct(pts);
-  const auto rep = analyze(r.mesh);
-  require_valid(r, rep);
-  CHECK(rep.boundary_loops == 0);
-  CHECK(rep.genus == 0);
-  CHECK(rep.components == 1);
-  CHECK(find_self_intersections(r.mesh).pairs == 0);
-  CHECK(r.bulk_patches >= 8);
-  CHECK(r.bulk_triangles > r.mesh.triangles.size() / 2);
 }
 
 TEST_CASE("reconstruction is deterministic", "[recon]") {
