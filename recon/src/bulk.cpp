@@ -287,6 +287,9 @@ class Bulk {
           start = i;
           break;
         }
+      // A vertex beside a face not kept is on the border (set again whenever its ring changes:
+      // a neighbour's drop queues it once more); the others have closed fans.
+      vh->info().border = start != m;
       std::size_t runs = 0, best_len = 0, best_at = 0;
       if (start == m) {  // a closed fan
         if (static_cast<int>(m) <= opt_.max_valence) continue;
@@ -322,28 +325,18 @@ class Bulk {
       }
     }
     // Output: the kept faces, their border edges (across from a face not kept), and the chords
-    // between border vertices.
+    // (edges of two kept faces between border vertices; once, from the face at the lower address).
     for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
       if (!fh->info().kept) continue;
-      const std::uint32_t q[3] = {fh->vertex(0)->info().point, fh->vertex(1)->info().point,
-                                  fh->vertex(2)->info().point};
-      out_.triangles.push_back({q[0], q[1], q[2]});
+      const VertexInfo* q[3] = {&fh->vertex(0)->info(), &fh->vertex(1)->info(), &fh->vertex(2)->info()};
+      out_.triangles.push_back({q[0]->point, q[1]->point, q[2]->point});
       for (int k = 0; k < 3; ++k) {
         const Delaunay::Face_handle g = fh->neighbor(k);
-        if (!dt.is_infinite(g) && g->info().kept) continue;
-        out_.border.push_back({q[(k + 1) % 3], q[(k + 2) % 3], q[k]});
-        fh->vertex((k + 1) % 3)->info().border = true;
-        fh->vertex((k + 2) % 3)->info().border = true;
-      }
-    }
-    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
-      if (!fh->info().kept) continue;
-      for (int k = 0; k < 3; ++k) {
-        const Delaunay::Face_handle g = fh->neighbor(k);
-        if (dt.is_infinite(g) || !g->info().kept || &*g < &*fh) continue;  // once per edge
-        const VertexInfo& x = fh->vertex((k + 1) % 3)->info();
-        const VertexInfo& y = fh->vertex((k + 2) % 3)->info();
-        if (x.border && y.border) out_.border_chords.push_back({x.point, y.point});
+        const VertexInfo &x = *q[(k + 1) % 3], &y = *q[(k + 2) % 3];
+        if (dt.is_infinite(g) || !g->info().kept)
+          out_.border.push_back({x.point, y.point, q[k]->point});
+        else if (&*fh < &*g && x.border && y.border)
+          out_.border_chords.push_back({x.point, y.point});
       }
     }
   }
