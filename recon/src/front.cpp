@@ -1459,7 +1459,8 @@ void Builder::orient_components() {
   const std::size_t n = p_.size();
   detail::TriangleComponents components(n, tris_);
   const auto ncomp = static_cast<std::uint32_t>(components.count());
-  auto comp = [&](const Triangle& t) { return components.of(t); };
+  // One component (the usual case): no look-ups in the passes below.
+  auto comp = [&](const Triangle& t) { return ncomp == 1 ? 0u : components.of(t); };
   // Per component: boundary edges (to know whether it is closed) and signed volume. An edge
   // {u, v} is a boundary edge when exactly one of u's triangles contains v (vertex -> triangle
   // lists, 4 bytes per corner).
