@@ -2,13 +2,14 @@
 // SPDX-License-Identifier: MIT
 #include "bulk.hpp"
 
+#include "triangle_shape.hpp"
+
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
 #include <algorithm>
-
 #include <array>
 #include <cmath>
 #include <numbers>
@@ -59,8 +60,7 @@ class Bulk {
     collect_cells();
     patch_of_.assign(cells_.size(), kNone);
     slot_patch_.assign(p_.size(), kNone);
-    const auto cos_theta = static_cast<float>(std::cos(opt_.patch_cone_deg * std::numbers::pi / 180));
-    cos_theta_ = cos_theta;
+    cos_theta_ = static_cast<float>(std::cos(opt_.patch_cone_deg * std::numbers::pi / 180));
     std::vector<std::uint32_t> patch;
     std::uint32_t next_id = 0;
     for (std::uint32_t c = 0; c < cells_.size(); ++c) {
@@ -71,14 +71,14 @@ class Bulk {
       const Eigen::Vector3f dir = cells_[c].mean;
       patch.clear();
       patch.push_back(c);
-      assign(c, id);
+      patch_of_[c] = id;
       std::size_t count = cells_[c].last - cells_[c].first;
       for (std::size_t head = 0; head < patch.size(); ++head) {
         for_each_neighbour(patch[head], [&](std::uint32_t d) {
           const Cell& cd = cells_[d];
           if (!cd.ok || patch_of_[d] != kNone || count >= opt_.max_patch_points) return;
-          if (cd.mean.dot(dir) < cos_theta) return;
-          assign(d, id);
+          if (cd.mean.dot(dir) < cos_theta_) return;
+          patch_of_[d] = id;
           patch.push_back(d);
           count += cd.last - cd.first;
         });
@@ -131,8 +131,6 @@ class Bulk {
         }
       }
   }
-
-  void assign(std::uint32_t c, std::uint32_t id) { patch_of_[c] = id; }
 
   [[nodiscard]] double spacing(std::uint32_t v) const {
     return std::min<double>(f_.spacing[v], opt_.spacing_cap);
@@ -207,24 +205,16 @@ class Bulk {
       const std::array<VertexInfo, 3> vi = {corner(fh, 0), corner(fh, 1), corner(fh, 2)};
       const Vec3 &a = p_[vi[0].point], &b = p_[vi[1].point], &c = p_[vi[2].point];
       const Vec3 e[3] = {c - b, a - c, b - a};  // edge k is opposite corner k
-      double len2[3];
       bool ok = true;
       double longest2 = 0;
       for (int k = 0; k < 3 && ok; ++k) {
-        len2[k] = e[k].squaredNorm();
+        const double len2 = e[k].squaredNorm();
         const double r = opt_.radius_factor *
                          std::max(spacing(vi[(k + 1) % 3].point), spacing(vi[(k + 2) % 3].point));
-        ok = len2[k] > 0 && len2[k] <= r * r;
-        longest2 = std::max(longest2, len2[k]);
+        ok = len2 > 0 && len2 <= r * r;
+        longest2 = std::max(longest2, len2);
       }
-      if (!ok) continue;
-      // Interior angles: the cosine at corner k is -e[k+1].e[k+2] / (|e[k+1]| |e[k+2]|).
-      for (int k = 0; k < 3 && ok; ++k) {
-        const Vec3& p = e[(k + 1) % 3];
-        const Vec3& q = e[(k + 2) % 3];
-        ok = -p.dot(q) <= opt_.cos_min_angle * std::sqrt(len2[(k + 1) % 3] * len2[(k + 2) % 3]);
-      }
-      if (!ok) continue;
+      if (!ok || min_angle_cos(a, b, c) > opt_.cos_min_angle) continue;
       const Vec3 n = (b - a).cross(c - a).normalized();
       for (int k = 0; k < 3 && ok; ++k)
         ok = f_.normal[vi[k].point].cast<double>().dot(n) >= opt_.cos_corner;
@@ -341,7 +331,6 @@ class Bulk {
     }
   }
 
-
   static constexpr std::uint64_t kMask = (std::uint64_t{1} << 21) - 1;
   std::span<const Vec3> p_;
   const LocalFrames& f_;
@@ -354,7 +343,7 @@ class Bulk {
   std::vector<std::uint32_t> slot_patch_;  // per grid slot: the patch of the point's cell
   BulkMesh& out_;
   std::size_t first_triangle_;
-  float cos_theta_ = 1;
+  float cos_theta_ = 1;  // cosine of the patch cone
 };
 
 }  // namespace

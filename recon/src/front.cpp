@@ -357,14 +357,20 @@ class Builder {
     return ccw_turn(p_[e.a] - p_[e.b], p_[n.b] - p_[e.b], nb);
   }
   void push(std::uint32_t eid) { push_touched(&eid, 1); }
-  /// Links every front edge to the outgoing edge at its end (each vertex has one fan, hence at
-  /// most one outgoing edge).
-  void link_loops() {
+  /// Starts a front just made from the triangles (its edges, edge table and valences): links
+  /// every edge to the outgoing edge at its end (each vertex has one fan, hence at most one
+  /// outgoing edge), sets the states of the vertices in triangles, queues every edge and
+  /// rebuilds the corner lists. Shared by rebuild_front and the bulk's load.
+  void start_front() {
     for (std::uint32_t id = 0; id < edges_.size(); ++id) {
       const std::uint32_t nx = head_out_[edges_[id].b];
       edges_[id].next = nx;
       edges_[nx].prev = id;
     }
+    for (std::uint32_t v = 0; v < state_.size(); ++v)
+      if (valence_[v] != 0) update_state(v);
+    for (std::uint32_t id = 0; id < edges_.size(); ++id) push(id);
+    rebuild_corner_lists();
   }
   /// Queues several edges (those a new triangle touched): neighbours share end points, so each
   /// end turn is computed once (an edge's key needs the turns at both of its ends).
@@ -1432,13 +1438,7 @@ void Builder::rebuild_front() {
     }
   }
   // After repair_fans every vertex has one fan, hence at most one outgoing edge.
-  link_loops();
-  for (std::uint32_t v = 0; v < state_.size(); ++v) {
-    if (valence_[v] == 0) continue;
-    update_state(v);
-  }
-  for (std::uint32_t id = 0; id < edges_.size(); ++id) push(id);
-  rebuild_corner_lists();
+  start_front();
 }
 
 /// A small component that crosses another grows from a seed among points a larger one left
@@ -1740,12 +1740,7 @@ void Builder::grow_from_bulk() {
     ++valence_[a];  // an open fan of k triangles has k + 1 edges
   }
   for (const auto& [u, w] : bulk.border_chords) edges_map_.insert(u, w, kInterior);
-  link_loops();  // the bulk leaves every vertex one fan
-  for (const Triangle& t : tris_)
-    for (std::uint32_t v : t)
-      if (state_[v] == VertexState::kFree) update_state(v);
-  for (std::uint32_t id = 0; id < edges_.size(); ++id) push(id);
-  rebuild_corner_lists();
+  start_front();  // the bulk leaves every vertex one fan
   if (check_every_step_) check_front();
   grow();
 }
