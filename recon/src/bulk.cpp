@@ -2,12 +2,9 @@
 // SPDX-License-Identifier: MIT
 #include "bulk.hpp"
 
+#include "delaunay2.hpp"
 #include "triangle_shape.hpp"
 
-#include <CGAL/Delaunay_triangulation_2.h>
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Triangulation_face_base_with_info_2.h>
-#include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
 #include <algorithm>
 #include <array>
@@ -18,24 +15,6 @@ namespace scanmesh::recon::detail {
 namespace {
 
 constexpr std::uint32_t kNone = 0xffffffffu;
-
-struct VertexInfo {
-  std::uint32_t point = kNone;
-  std::uint32_t cell = kNone;  // index into the patch's cells
-  std::uint16_t degree = 0;  // kept faces around the vertex (before the fan repairs)
-  bool queued = false;
-  bool border = false;  // on the border of the kept triangles
-};
-
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
-using Vb = CGAL::Triangulation_vertex_base_with_info_2<VertexInfo, Kernel>;
-struct FaceInfo {
-  bool kept = false;
-  Eigen::Vector3f normal;  // unit normal of a face that passed the rules
-};
-using Fb = CGAL::Triangulation_face_base_with_info_2<FaceInfo, Kernel>;
-using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
-using Delaunay = CGAL::Delaunay_triangulation_2<Kernel, Tds>;
 
 struct Cell {
   std::uint64_t key;  // z << 42 | y << 21 | x: cells come in this order from the grid
@@ -160,28 +139,25 @@ class Bulk {
     const Vec3 v = dir.cross(u);
     const std::vector<std::uint32_t>& order = grid_.order();
     const Eigen::Vector3f dir_f = dir.cast<float>();
-    Delaunay dt;
-    Delaunay::Face_handle hint;
+    local_.clear();
+    xy_.clear();
     for (std::size_t i = 0; i < patch.size(); ++i) {
       const Cell& c = cells_[patch[i]];
       for (std::uint32_t s = c.first; s < c.last; ++s) {
         const std::uint32_t pt = order[s];
         // Turning points and normals outside the patch's cone are left to the front.
         if (!eligible(pt) || f_.normal[pt].dot(dir_f) < cos_theta_) continue;
-        const std::size_t before = dt.number_of_vertices();
-        const Delaunay::Vertex_handle vh = dt.insert(Kernel::Point_2(p_[pt].dot(u), p_[pt].dot(v)), hint);
-        hint = vh->face();
-        // A point whose projection repeats one already in: left to the front.
-        if (dt.number_of_vertices() == before) continue;
-        vh->info() = {pt, static_cast<std::uint32_t>(i), 0, false, false};
-        slot_patch_[s] = id;
+        local_.push_back({pt, s, static_cast<std::uint32_t>(i)});
+        xy_.push_back({p_[pt].dot(u), p_[pt].dot(v)});
       }
     }
-    if (dt.dimension() < 2) {  // too few points, or all in one line: left to the front
-      for (const std::uint32_t c : patch)
-        for (std::uint32_t s = cells_[c].first; s < cells_[c].last; ++s) slot_patch_[s] = kNone;
-      return;
-    }
+    dt_.triangulate(xy_);
+    // Too few points, or all in one line: left to the front. So is a point whose projection
+    // repeats one already in.
+    if (dt_.triangle_count() == 0) return;
+    const std::size_t nv = local_.size();
+    for (std::uint32_t j = 0; j < nv; ++j)
+      if (dt_.inserted(j)) slot_patch_[local_[j].slot] = id;
     // inner: the cell's points and those of every occupied neighbour cell are all in the
     // triangulation, so no point outside it can lie in a triangle between its points.
     std::vector<std::uint8_t> clean(patch.size(), 1);
@@ -199,99 +175,113 @@ class Bulk {
         if (!clean[at]) inner[i] = 0;
       });
     const double cell = grid_.cell();
-    auto corner = [&](Delaunay::Face_handle fh, int k) { return fh->vertex(k)->info(); };
-    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
-      fh->info().kept = false;
-      const std::array<VertexInfo, 3> vi = {corner(fh, 0), corner(fh, 1), corner(fh, 2)};
-      const Vec3 &a = p_[vi[0].point], &b = p_[vi[1].point], &c = p_[vi[2].point];
+    const std::span<const std::uint32_t> corner = dt_.corners(), twin = dt_.twins();
+    const std::size_t nt = dt_.triangle_count();
+    kept_.assign(nt, 0);
+    normal_.resize(nt);
+    for (std::size_t t = 0; t < nt; ++t) {
+      const std::array<const Local*, 3> vi = {&local_[corner[3 * t]], &local_[corner[3 * t + 1]],
+                                              &local_[corner[3 * t + 2]]};
+      const Vec3 &a = p_[vi[0]->point], &b = p_[vi[1]->point], &c = p_[vi[2]->point];
       const Vec3 e[3] = {c - b, a - c, b - a};  // edge k is opposite corner k
       bool ok = true;
       double longest2 = 0;
       for (int k = 0; k < 3 && ok; ++k) {
         const double len2 = e[k].squaredNorm();
         const double r = opt_.radius_factor *
-                         std::max(spacing(vi[(k + 1) % 3].point), spacing(vi[(k + 2) % 3].point));
+                         std::max(spacing(vi[(k + 1) % 3]->point), spacing(vi[(k + 2) % 3]->point));
         ok = len2 > 0 && len2 <= r * r;
         longest2 = std::max(longest2, len2);
       }
       if (!ok || min_angle_cos(a, b, c) > opt_.cos_min_angle) continue;
       const Vec3 n = (b - a).cross(c - a).normalized();
       for (int k = 0; k < 3 && ok; ++k)
-        ok = f_.normal[vi[k].point].cast<double>().dot(n) >= opt_.cos_corner;
+        ok = f_.normal[vi[k]->point].cast<double>().dot(n) >= opt_.cos_corner;
       if (!ok) continue;
       // Near the patch's border (or longer than a cell), a point of another patch or a point
       // the patch left out could lie in the triangle: the circumsphere must hold none.
-      const bool sheltered = inner[vi[0].cell] && inner[vi[1].cell] && inner[vi[2].cell] &&
+      const bool sheltered = inner[vi[0]->cell] && inner[vi[1]->cell] && inner[vi[2]->cell] &&
                              longest2 <= cell * cell;
       if (!sheltered && foreign_inside(a, b, c, id)) continue;
-      fh->info() = {true, n.cast<float>()};
+      kept_[t] = 1;
+      normal_[t] = n.cast<float>();
     }
     // No fold between kept neighbours (both faces of such a pair are dropped), and the fans to
     // examine: only vertices beside a face not kept (or on the hull) can have several fans; a
     // closed fan only needs its size checked. One pass: a face dropped here queues its corners.
-    std::vector<Delaunay::Vertex_handle> queue;
-    auto enqueue = [&](Delaunay::Vertex_handle w) {
-      if (dt.is_infinite(w) || w->info().queued) return;
-      w->info().queued = true;
-      queue.push_back(w);
+    vstate_.assign(nv, {});
+    queue_.clear();
+    auto enqueue = [&](std::uint32_t w) {
+      if (vstate_[w].queued) return;
+      vstate_[w].queued = true;
+      queue_.push_back(w);
     };
-    auto drop = [&](Delaunay::Face_handle fh) {
-      fh->info().kept = false;
-      for (int k = 0; k < 3; ++k) enqueue(fh->vertex(k));
+    auto drop = [&](std::size_t t) {
+      kept_[t] = 0;
+      for (std::size_t k = 0; k < 3; ++k) enqueue(corner[3 * t + k]);
     };
     const auto cos_fold = static_cast<float>(opt_.cos_dihedral);
-    for (auto fh = dt.all_faces_begin(); fh != dt.all_faces_end(); ++fh) {
-      if (dt.is_infinite(fh) || !fh->info().kept) {
-        for (int k = 0; k < 3; ++k) enqueue(fh->vertex(k));
+    for (std::size_t t = 0; t < nt; ++t) {
+      if (!kept_[t]) {
+        for (std::size_t k = 0; k < 3; ++k) enqueue(corner[3 * t + k]);
         continue;
       }
-      for (int k = 0; k < 3 && fh->info().kept; ++k) {
-        const Delaunay::Face_handle g = fh->neighbor(k);
-        if (dt.is_infinite(g) || !g->info().kept) continue;
-        if (fh->info().normal.dot(g->info().normal) <= cos_fold) {
-          drop(fh);
-          drop(g);
+      for (std::size_t k = 0; k < 3; ++k) {
+        const std::uint32_t g = twin[3 * t + k];
+        if (g == Delaunay2::kNone) {  // a hull edge
+          enqueue(corner[3 * t + k]);
+          enqueue(corner[Delaunay2::next(static_cast<std::uint32_t>(3 * t + k))]);
+          continue;
+        }
+        if (!kept_[t] || !kept_[g / 3]) continue;
+        if (normal_[t].dot(normal_[g / 3]) <= cos_fold) {
+          drop(t);
+          drop(g / 3);
         }
       }
       // Counted before a later neighbour may drop it: an upper bound, enough to find the fans
       // that may be too large (the walk below counts exactly).
-      for (int k = 0; k < 3; ++k) ++fh->vertex(k)->info().degree;
+      for (std::size_t k = 0; k < 3; ++k) ++vstate_[corner[3 * t + k]].degree;
     }
-    for (auto vh = dt.finite_vertices_begin(); vh != dt.finite_vertices_end(); ++vh)
-      if (vh->info().degree > opt_.max_valence) enqueue(vh);
-    std::vector<Delaunay::Face_handle> ring;
-    while (!queue.empty()) {
-      const Delaunay::Vertex_handle vh = queue.back();
-      queue.pop_back();
-      vh->info().queued = false;
-      ring.clear();
-      Delaunay::Face_circulator fc = dt.incident_faces(vh), done = fc;
+    for (std::uint32_t j = 0; j < nv; ++j)
+      if (vstate_[j].degree > opt_.max_valence) enqueue(j);
+    auto kept = [&](std::uint32_t t) { return t != Delaunay2::kNone && kept_[t]; };
+    while (!queue_.empty()) {
+      const std::uint32_t vh = queue_.back();
+      queue_.pop_back();
+      vstate_[vh].queued = false;
+      if (!dt_.inserted(vh)) continue;
+      // The faces around vh in order; on the hull, a last slot for the outside (not kept).
+      ring_.clear();
+      const std::uint32_t h0 = dt_.out_edge(vh);
+      std::uint32_t h = h0;
       do {
-        ring.push_back(fc);
-      } while (++fc != done);
-      auto kept = [&](const Delaunay::Face_handle& fh) { return !dt.is_infinite(fh) && fh->info().kept; };
-      const std::size_t m = ring.size();
+        ring_.push_back(h / 3);
+        h = twin[Delaunay2::prev(h)];
+      } while (h != Delaunay2::kNone && h != h0);
+      if (h == Delaunay2::kNone) ring_.push_back(Delaunay2::kNone);
+      const std::size_t m = ring_.size();
       std::size_t start = m;
       for (std::size_t i = 0; i < m; ++i)
-        if (!kept(ring[i])) {
+        if (!kept(ring_[i])) {
           start = i;
           break;
         }
       // A vertex beside a face not kept is on the border (set again whenever its ring changes:
       // a neighbour's drop queues it once more); the others have closed fans.
-      vh->info().border = start != m;
+      vstate_[vh].border = start != m;
       std::size_t runs = 0, best_len = 0, best_at = 0;
       if (start == m) {  // a closed fan
         if (static_cast<int>(m) <= opt_.max_valence) continue;
       } else {
         for (std::size_t i = 0; i < m;) {
           const std::size_t at = (start + i) % m;
-          if (!kept(ring[at])) {
+          if (!kept(ring_[at])) {
             ++i;
             continue;
           }
           std::size_t len = 0;
-          while (i < m && kept(ring[(start + i) % m])) {
+          while (i < m && kept(ring_[(start + i) % m])) {
             ++len;
             ++i;
           }
@@ -306,27 +296,27 @@ class Bulk {
       // Too many edges: drop the whole fan; several fans: keep the largest.
       const bool keep_best = start != m && static_cast<int>(best_len) + 1 <= opt_.max_valence;
       for (std::size_t i = 0; i < m; ++i) {
-        const Delaunay::Face_handle fh = ring[i];
-        if (!kept(fh)) continue;
+        const std::uint32_t t = ring_[i];
+        if (!kept(t)) continue;
         if (keep_best && ((i + m - best_at) % m) < best_len) continue;
-        fh->info().kept = false;
-        for (int k = 0; k < 3; ++k)
-          if (fh->vertex(k) != vh) enqueue(fh->vertex(k));
+        kept_[t] = 0;
+        for (std::size_t k = 0; k < 3; ++k)
+          if (corner[3 * t + k] != vh) enqueue(corner[3 * t + k]);
       }
     }
     // Output: the kept faces, their border edges (across from a face not kept), and the chords
-    // (edges of two kept faces between border vertices; once, from the face at the lower address).
-    for (auto fh = dt.finite_faces_begin(); fh != dt.finite_faces_end(); ++fh) {
-      if (!fh->info().kept) continue;
-      const VertexInfo* q[3] = {&fh->vertex(0)->info(), &fh->vertex(1)->info(), &fh->vertex(2)->info()};
-      out_.triangles.push_back({q[0]->point, q[1]->point, q[2]->point});
-      for (int k = 0; k < 3; ++k) {
-        const Delaunay::Face_handle g = fh->neighbor(k);
-        const VertexInfo &x = *q[(k + 1) % 3], &y = *q[(k + 2) % 3];
-        if (dt.is_infinite(g) || !g->info().kept)
-          out_.border.push_back({x.point, y.point, q[k]->point});
-        else if (&*fh < &*g && x.border && y.border)
-          out_.border_chords.push_back({x.point, y.point});
+    // (edges of two kept faces between border vertices; once, from the lower half-edge).
+    for (std::uint32_t t = 0; t < nt; ++t) {
+      if (!kept_[t]) continue;
+      const std::uint32_t* q = &corner[3 * t];
+      out_.triangles.push_back({local_[q[0]].point, local_[q[1]].point, local_[q[2]].point});
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const std::uint32_t x = q[k], y = q[(k + 1) % 3];
+        const std::uint32_t g = twin[3 * t + k];
+        if (!kept(g == Delaunay2::kNone ? g : g / 3))
+          out_.border.push_back({local_[x].point, local_[y].point, local_[q[(k + 2) % 3]].point});
+        else if (3 * t + k < g && vstate_[x].border && vstate_[y].border)
+          out_.border_chords.push_back({local_[x].point, local_[y].point});
       }
     }
   }
@@ -344,6 +334,23 @@ class Bulk {
   BulkMesh& out_;
   std::size_t first_triangle_;
   float cos_theta_ = 1;  // cosine of the patch cone
+  // Per patch, reused: its points (grid slot, cell in the patch), their projections, the
+  // triangulation, and the state of its faces and vertices.
+  struct Local {
+    std::uint32_t point, slot, cell;
+  };
+  struct VertexState {
+    std::uint16_t degree = 0;  // kept faces around the vertex (before the fan repairs)
+    bool queued = false;
+    bool border = false;  // on the border of the kept triangles
+  };
+  std::vector<Local> local_;
+  std::vector<std::array<double, 2>> xy_;
+  Delaunay2 dt_;
+  std::vector<std::uint8_t> kept_;
+  std::vector<Eigen::Vector3f> normal_;  // unit normal of a face that passed the rules
+  std::vector<VertexState> vstate_;
+  std::vector<std::uint32_t> queue_, ring_;
 };
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include <cassert>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <deque>
 #include <queue>
 
@@ -326,7 +327,7 @@ class Builder {
   }
   void update_state(std::uint32_t v) {
     set_state(v, head_out_[v] == kNone ? VertexState::kDone : VertexState::kFront);
-    if (state_[v] == VertexState::kDone && !corner_head_.empty() && turning_[v] != 1) release_corners(v);
+    if (state_[v] == VertexState::kDone && !corner_head_.empty() && turning_[v] == 0) release_corners(v);
   }
   [[nodiscard]] Vec3 tri_normal(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
     return (p_[b] - p_[a]).cross(p_[c] - p_[a]);
@@ -479,7 +480,7 @@ class Builder {
   /// those the front shows with two open sectors (a vertex where two closed fans touch has no
   /// front edge at all).
   std::size_t repair_fans(bool thorough = false);
-  void orient_components();
+  void orient_components(detail::TriangleComponents& components);
   /// Removes every smaller component that crosses another component (see the definition).
   void drop_crossing_components();
   void rebuild_front();
@@ -504,7 +505,7 @@ class Builder {
   void release_corners(std::uint32_t v);
   void rebuild_corner_lists();
   [[nodiscard]] bool keeps_list(std::uint32_t v) const {
-    return turning_[v] == 1 || state_[v] != VertexState::kDone;
+    return turning_[v] != 0 || state_[v] != VertexState::kDone;
   }
   [[nodiscard]] bool turning(const Triangle& t) const {
     return (turning_[t[0]] | turning_[t[1]] | turning_[t[2]]) != 0;
@@ -1453,35 +1454,44 @@ void Builder::drop_crossing_components() {
   res_.dropped_components += remove_crossing_components(p_, tris_);
 }
 
-void Builder::orient_components() {
-  // Components over shared vertices (fans are single after repair_fans), with compact ids: the
-  // per-component sums below need one slot per component (this runs at the peak of memory).
-  const std::size_t n = p_.size();
-  detail::TriangleComponents components(n, tris_);
+void Builder::orient_components(detail::TriangleComponents& components) {
   const auto ncomp = static_cast<std::uint32_t>(components.count());
   // One component (the usual case): no look-ups in the passes below.
   auto comp = [&](const Triangle& t) { return ncomp == 1 ? 0u : components.of(t); };
-  // Per component: boundary edges (to know whether it is closed) and signed volume. An edge
-  // {u, v} is a boundary edge when exactly one of u's triangles contains v (vertex -> triangle
-  // lists, 4 bytes per corner).
+  // Per component: whether it is open, and, for the closed ones, the signed volume. The front
+  // matches the mesh here, so a component is open exactly when one of its vertices has a front
+  // edge (an open fan).
   std::vector<std::uint8_t> open(ncomp, 0);
+  std::uint32_t open_count = 0;
+  for (const Triangle& t : tris_) {
+    if (open_count == ncomp) break;  // all open (open scans: at once)
+    const std::uint32_t c = comp(t);
+    if (open[c]) continue;
+    if (head_out_[t[0]] != kNone || head_out_[t[1]] != kNone || head_out_[t[2]] != kNone) {
+      open[c] = 1;
+      ++open_count;
+    }
+  }
+#ifndef NDEBUG
   {
-    const VertexTriangles adj(n, tris_);
-    const std::vector<std::uint32_t>& start = adj.start;
-    const std::vector<std::uint32_t>& vt = adj.list;
-    for (const Triangle& t : tris_) {
-      if (open[comp(t)]) continue;  // one boundary edge is enough (open scans: found at once)
+    // Checked against the edges: {u, v} is a boundary edge when exactly one of u's triangles
+    // contains v.
+    std::vector<std::uint8_t> open_edges(ncomp, 0);
+    const VertexTriangles adj(p_.size(), tris_);
+    for (const Triangle& t : tris_)
       for (std::size_t k = 0; k < 3; ++k) {
         const std::uint32_t u = t[k], v = t[(k + 1) % 3];
         int uses = 0;
-        for (std::uint32_t s = start[u]; s < start[u + 1] && uses < 2; ++s) {
-          const Triangle& o = tris_[vt[s]];
+        for (std::uint32_t s = adj.start[u]; s < adj.start[u + 1]; ++s) {
+          const Triangle& o = tris_[adj.list[s]];
           uses += (o[0] == v || o[1] == v || o[2] == v) ? 1 : 0;
         }
-        if (uses == 1) open[comp(t)] = 1;
+        if (uses == 1) open_edges[comp(t)] = 1;
       }
-    }
+    assert(open_edges == open);
   }
+#endif
+  if (open_count == ncomp) return;  // the front's orientation stands
   std::vector<Vec3> centroid(ncomp, Vec3::Zero());
   std::vector<double> vol(ncomp, 0.0), count(ncomp, 0.0);
   for (const Triangle& t : tris_) {
@@ -1804,8 +1814,16 @@ FrontResult Builder::run() {
     if (round < 2) fill_small_loops();
   }
   edges_map_ = EdgeMap(0);  // not needed any more
-  drop_crossing_components();
-  orient_components();
+  {
+    // Components can only cross when there are several; the orientation pass needs them too.
+    std::optional<detail::TriangleComponents> components(std::in_place, n, tris_);
+    if (components->count() > 1) {
+      const std::size_t before = tris_.size();
+      drop_crossing_components();
+      if (tris_.size() != before) components.emplace(n, tris_);
+    }
+    orient_components(*components);
+  }
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);
   for (const Triangle& t : tris_)
