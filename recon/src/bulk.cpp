@@ -20,7 +20,14 @@ struct Cell {
   std::uint64_t key;  // z << 42 | y << 21 | x: cells come in this order from the grid
   std::uint32_t first, last;
   Eigen::Vector3f mean;  // mean normal of its eligible points (unit)
-  bool ok = false;       // it has eligible points
+  std::uint32_t row = 0;  // index in the rows (runs of cells with one y and z)
+  bool ok = false;        // it has eligible points
+  bool clean = false;     // all its points are in its patch's triangulation
+};
+
+struct Row {
+  std::uint64_t yz;  // z << 21 | y
+  std::uint32_t first, end;  // its cells
 };
 
 std::uint64_t cell_key(std::int64_t x, std::int64_t y, std::int64_t z) {
@@ -76,7 +83,12 @@ class Bulk {
     const std::vector<std::uint32_t>& order = grid_.order();
     grid_.for_each_cell([&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first,
                             std::uint32_t last) {
-      Cell c{cell_key(x, y, z), first, last, Eigen::Vector3f(0, 0, 1), false};
+      Cell c{cell_key(x, y, z), first, last, Eigen::Vector3f(0, 0, 1)};
+      const std::uint64_t yz = c.key >> 21;
+      const auto here = static_cast<std::uint32_t>(cells_.size());
+      if (rows_.empty() || rows_.back().yz != yz) rows_.push_back({yz, here, here});
+      ++rows_.back().end;
+      c.row = static_cast<std::uint32_t>(rows_.size() - 1);
       Eigen::Vector3f sum = Eigen::Vector3f::Zero();
       for (std::uint32_t s = first; s < last; ++s)
         if (eligible(order[s])) sum += f_.normal[order[s]];
@@ -87,28 +99,46 @@ class Bulk {
       }
       cells_.push_back(c);
     });
+    // The nine rows around each row (dz, dy ascending), or kNone.
+    row_near_.assign(9 * rows_.size(), kNone);
+    for (std::uint32_t r = 0; r < rows_.size(); ++r) {
+      const auto y = static_cast<std::int64_t>(rows_[r].yz & kMask), z = static_cast<std::int64_t>(rows_[r].yz >> 21);
+      for (std::int64_t dz = -1, k = 0; dz <= 1; ++dz)
+        for (std::int64_t dy = -1; dy <= 1; ++dy, ++k) {
+          if (y + dy < 0 || z + dz < 0) continue;
+          const std::uint64_t yz = (static_cast<std::uint64_t>(z + dz) << 21) | static_cast<std::uint64_t>(y + dy);
+          const auto it = std::lower_bound(rows_.begin(), rows_.end(), yz,
+                                           [](const Row& q, std::uint64_t v) { return q.yz < v; });
+          if (it != rows_.end() && it->yz == yz)
+            row_near_[9 * r + static_cast<std::size_t>(k)] = static_cast<std::uint32_t>(it - rows_.begin());
+        }
+    }
   }
 
   [[nodiscard]] bool eligible(std::uint32_t v) const { return excluded_.empty() || excluded_[v] == 0; }
 
+  /// Calls f(d) for every occupied cell d next to cell c (26-neighbourhood), in key order.
   template <class F>
   void for_each_neighbour(std::uint32_t c, F&& f) const {
-    const std::uint64_t key = cells_[c].key;
-    const auto x = static_cast<std::int64_t>(key & kMask), y = static_cast<std::int64_t>((key >> 21) & kMask),
-               z = static_cast<std::int64_t>(key >> 42);
-    for (std::int64_t dz = -1; dz <= 1; ++dz)
-      for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        // The row's three cells are consecutive keys: one search per row.
-        if (y + dy < 0 || z + dz < 0) continue;
-        const std::uint64_t lo = cell_key(std::max<std::int64_t>(x - 1, 0), y + dy, z + dz);
-        const std::uint64_t hi = cell_key(x + 1, y + dy, z + dz);
-        auto it = std::lower_bound(cells_.begin(), cells_.end(), lo,
-                                   [](const Cell& q, std::uint64_t k) { return q.key < k; });
-        for (; it != cells_.end() && it->key <= hi; ++it) {
-          const auto d = static_cast<std::uint32_t>(it - cells_.begin());
-          if (d != c) f(d);
-        }
+    const std::uint64_t x = cells_[c].key & kMask;
+    const std::uint64_t lo = x > 0 ? x - 1 : 0, hi = x + 1;
+    const std::uint32_t* near = &row_near_[9 * std::size_t{cells_[c].row}];
+    for (int k = 0; k < 9; ++k) {
+      if (near[k] == kNone) continue;
+      const Row& r = rows_[near[k]];
+      // The row's cells are in x order: the three around x are consecutive.
+      const Cell* first = cells_.data() + r.first;
+      const Cell* end = cells_.data() + r.end;
+      const Cell* it = end - first > 8 ? std::lower_bound(first, end, lo, [](const Cell& q, std::uint64_t v) {
+        return (q.key & kMask) < v;
+      })
+                                       : first;
+      for (; it != end && (it->key & kMask) <= hi; ++it) {
+        if ((it->key & kMask) < lo) continue;
+        const auto d = static_cast<std::uint32_t>(it - cells_.data());
+        if (d != c) f(d);
       }
+    }
   }
 
   [[nodiscard]] double spacing(std::uint32_t v) const {
@@ -160,20 +190,19 @@ class Bulk {
       if (dt_.inserted(j)) slot_patch_[local_[j].slot] = id;
     // inner: the cell's points and those of every occupied neighbour cell are all in the
     // triangulation, so no point outside it can lie in a triangle between its points.
-    std::vector<std::uint8_t> clean(patch.size(), 1);
-    for (std::size_t i = 0; i < patch.size(); ++i)
-      for (std::uint32_t s = cells_[patch[i]].first; s < cells_[patch[i]].last; ++s)
-        if (slot_patch_[s] != id) clean[i] = 0;
-    std::vector<std::uint8_t> inner(clean);
-    for (std::size_t i = 0; i < patch.size(); ++i)
-      for_each_neighbour(patch[i], [&](std::uint32_t d) {
-        if (patch_of_[d] != id) {
-          inner[i] = 0;
-          return;
-        }
-        const auto at = static_cast<std::size_t>(std::lower_bound(patch.begin(), patch.end(), d) - patch.begin());
-        if (!clean[at]) inner[i] = 0;
-      });
+    for (const std::uint32_t c : patch) {
+      cells_[c].clean = true;
+      for (std::uint32_t s = cells_[c].first; s < cells_[c].last; ++s)
+        if (slot_patch_[s] != id) cells_[c].clean = false;
+    }
+    std::vector<std::uint8_t> inner(patch.size());
+    for (std::size_t i = 0; i < patch.size(); ++i) {
+      inner[i] = cells_[patch[i]].clean ? 1 : 0;
+      if (inner[i])
+        for_each_neighbour(patch[i], [&](std::uint32_t d) {
+          if (patch_of_[d] != id || !cells_[d].clean) inner[i] = 0;
+        });
+    }
     const double cell = grid_.cell();
     const std::span<const std::uint32_t> corner = dt_.corners(), twin = dt_.twins();
     const std::size_t nt = dt_.triangle_count();
@@ -329,6 +358,8 @@ class Bulk {
   const BulkOptions& opt_;
   BulkStats& stats_;
   std::vector<Cell> cells_;
+  std::vector<Row> rows_;
+  std::vector<std::uint32_t> row_near_;  // per row: the nine rows around it (kNone: none)
   std::vector<std::uint32_t> patch_of_;   // per cell
   std::vector<std::uint32_t> slot_patch_;  // per grid slot: the patch of the point's cell
   BulkMesh& out_;

@@ -5,6 +5,8 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 
 #include <algorithm>
+#include <bit>
+#include <utility>
 #include <cmath>
 #include <limits>
 
@@ -110,6 +112,7 @@ std::uint32_t Delaunay2::add_triangle(std::uint32_t a, std::uint32_t b, std::uin
 
 void Delaunay2::legalize(std::uint32_t h) {
   // Every edge on the stack is opposite the point just inserted (w below): Lawson's flips.
+  static constexpr std::uint32_t kNext[3] = {1, 2, 0}, kPrev[3] = {2, 0, 1};
   stack_.clear();
   stack_.push_back(h);
   while (!stack_.empty()) {
@@ -118,11 +121,12 @@ void Delaunay2::legalize(std::uint32_t h) {
     const std::uint32_t b = twin_[a];
     if (b == kNone) continue;
     // a: u -> v in (u, v, w); b: v -> u in (v, u, x).
-    const std::uint32_t an = next(a), ap = prev(a), bn = next(b), bp = prev(b);
+    const std::uint32_t t1 = a / 3 * 3, t2 = b / 3 * 3;
+    const std::uint32_t an = t1 + kNext[a - t1], ap = t1 + kPrev[a - t1];
+    const std::uint32_t bn = t2 + kNext[b - t2], bp = t2 + kPrev[b - t2];
     const std::uint32_t u = corner_[a], v = corner_[an], w = corner_[ap], x = corner_[bp];
     if (!in_circle(p_[u], p_[v], p_[w], p_[x])) continue;
     // Flip to (w, u, x) and (x, v, w), in the slots of the two triangles.
-    const std::uint32_t t1 = a - a % 3, t2 = b - b % 3;
     const std::uint32_t tap = twin_[ap], tbn = twin_[bn], tbp = twin_[bp], tan = twin_[an];
     corner_[t1] = w;
     corner_[t1 + 1] = u;
@@ -132,7 +136,8 @@ void Delaunay2::legalize(std::uint32_t h) {
     corner_[t2 + 2] = w;
     link(t1, tap);
     link(t1 + 1, tbn);
-    link(t1 + 2, t2 + 2);
+    twin_[t1 + 2] = t2 + 2;
+    twin_[t2 + 2] = t1 + 2;
     link(t2, tbp);
     link(t2 + 1, tan);
     stack_.push_back(t1 + 1);  // u -> x, opposite w
@@ -185,10 +190,32 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
   if (right_of(points[i0], points[i1], points[i2])) std::swap(i1, i2);
   centre_ = circumcentre(points[i0], points[i1], points[i2]);
 
+  // The sweep order: by distance from the centre (as a float: rounding can only swap points
+  // at nearly the same distance, and one that then lies inside the hull is left out), ties by
+  // index. A stable radix sort, three passes of 11 bits (non-negative floats order like their
+  // bit patterns).
+  key_.clear();
   order_.clear();
   for (std::uint32_t i = 0; i < n; ++i)
-    if (i != i0 && i != i1 && i != i2) order_.emplace_back(dist2(points[i], centre_), i);
-  std::sort(order_.begin(), order_.end());
+    if (i != i0 && i != i1 && i != i2) {
+      key_.push_back(std::bit_cast<std::uint32_t>(static_cast<float>(dist2(points[i], centre_))));
+      order_.push_back(i);
+    }
+  sorted_.resize(order_.size());
+  key_sorted_.resize(order_.size());
+  for (int shift = 0; shift < 32; shift += 11) {
+    std::array<std::uint32_t, 2048> count{};
+    for (const std::uint32_t k : key_) ++count[(k >> shift) & 2047u];
+    std::uint32_t sum = 0;
+    for (std::uint32_t& c : count) sum += std::exchange(c, sum);
+    for (std::size_t j = 0; j < order_.size(); ++j) {
+      const std::uint32_t at = count[(key_[j] >> shift) & 2047u]++;
+      sorted_[at] = order_[j];
+      key_sorted_[at] = key_[j];
+    }
+    order_.swap(sorted_);
+    key_.swap(key_sorted_);
+  }
 
   corner_.reserve(6 * n);
   twin_.reserve(6 * n);
@@ -208,7 +235,7 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
   std::uint32_t hull_start = i0;
 
   std::uint32_t last = kNone;
-  for (const auto& [d, i] : order_) {
+  for (const std::uint32_t i : order_) {
     const auto& q = points[i];
     if (last != kNone && q == points[last]) continue;  // a repeat of the point before
     last = i;

@@ -1380,7 +1380,10 @@ void Builder::split_flat_triangle_holes() {
       for (const auto& im : inner) edges_map_.insert(im.second, o, kInterior);
       split = true;
     }
-    if (split) ++res_.filled_gaps;
+    if (split) {
+      ++res_.filled_gaps;
+      front_stale_ = true;  // the slit's loop is closed now
+    }
   }
   // Triangles were rewritten in place: once for all the splits.
   if (res_.filled_gaps != gaps_before) rebuild_corner_lists();
@@ -1813,6 +1816,7 @@ FrontResult Builder::run() {
     rebuild_front();
     if (round < 2) fill_small_loops();
   }
+  if (front_stale_) rebuild_front();  // a slit closed above: the states and the orientation read it
   edges_map_ = EdgeMap(0);  // not needed any more
   {
     // Components can only cross when there are several; the orientation pass needs them too.
