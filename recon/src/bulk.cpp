@@ -171,6 +171,9 @@ class Bulk {
     const Eigen::Vector3f dir_f = dir.cast<float>();
     local_.clear();
     xy_.clear();
+    lpos_.clear();
+    lnrm_.clear();
+    lspc_.clear();
     for (std::size_t i = 0; i < patch.size(); ++i) {
       const Cell& c = cells_[patch[i]];
       for (std::uint32_t s = c.first; s < c.last; ++s) {
@@ -179,6 +182,9 @@ class Bulk {
         if (!eligible(pt) || f_.normal[pt].dot(dir_f) < cos_theta_) continue;
         local_.push_back({pt, s, static_cast<std::uint32_t>(i)});
         xy_.push_back({p_[pt].dot(u), p_[pt].dot(v)});
+        lpos_.push_back(p_[pt]);
+        lnrm_.push_back(f_.normal[pt].cast<double>());
+        lspc_.push_back(spacing(pt));
       }
     }
     dt_.triangulate(xy_);
@@ -209,27 +215,26 @@ class Bulk {
     kept_.assign(nt, 0);
     normal_.resize(nt);
     for (std::size_t t = 0; t < nt; ++t) {
-      const std::array<const Local*, 3> vi = {&local_[corner[3 * t]], &local_[corner[3 * t + 1]],
-                                              &local_[corner[3 * t + 2]]};
-      const Vec3 &a = p_[vi[0]->point], &b = p_[vi[1]->point], &c = p_[vi[2]->point];
+      // The patch's own copies of its points' data: contiguous, in grid order.
+      const std::uint32_t* q = &corner[3 * t];
+      const Vec3 &a = lpos_[q[0]], &b = lpos_[q[1]], &c = lpos_[q[2]];
       const Vec3 e[3] = {c - b, a - c, b - a};  // edge k is opposite corner k
       bool ok = true;
       double longest2 = 0;
       for (int k = 0; k < 3 && ok; ++k) {
         const double len2 = e[k].squaredNorm();
-        const double r = opt_.radius_factor *
-                         std::max(spacing(vi[(k + 1) % 3]->point), spacing(vi[(k + 2) % 3]->point));
+        const double r = opt_.radius_factor * std::max(lspc_[q[(k + 1) % 3]], lspc_[q[(k + 2) % 3]]);
         ok = len2 > 0 && len2 <= r * r;
         longest2 = std::max(longest2, len2);
       }
       if (!ok || min_angle_cos(a, b, c) > opt_.cos_min_angle) continue;
       const Vec3 n = (b - a).cross(c - a).normalized();
       for (int k = 0; k < 3 && ok; ++k)
-        ok = f_.normal[vi[k]->point].cast<double>().dot(n) >= opt_.cos_corner;
+        ok = lnrm_[q[k]].dot(n) >= opt_.cos_corner;
       if (!ok) continue;
       // Near the patch's border (or longer than a cell), a point of another patch or a point
       // the patch left out could lie in the triangle: the circumsphere must hold none.
-      const bool sheltered = inner[vi[0]->cell] && inner[vi[1]->cell] && inner[vi[2]->cell] &&
+      const bool sheltered = inner[local_[q[0]].cell] && inner[local_[q[1]].cell] && inner[local_[q[2]].cell] &&
                              longest2 <= cell * cell;
       if (!sheltered && foreign_inside(a, b, c, id)) continue;
       kept_[t] = 1;
@@ -377,6 +382,8 @@ class Bulk {
   };
   std::vector<Local> local_;
   std::vector<std::array<double, 2>> xy_;
+  std::vector<Vec3> lpos_, lnrm_;  // its points' positions and normals
+  std::vector<double> lspc_;       // and capped spacings
   Delaunay2 dt_;
   std::vector<std::uint8_t> kept_;
   std::vector<Eigen::Vector3f> normal_;  // unit normal of a face that passed the rules

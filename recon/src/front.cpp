@@ -1158,7 +1158,23 @@ std::size_t Builder::repair_fans(bool thorough) {
     std::vector<std::uint8_t> dead(tris_.size(), 0);
     std::size_t removed = 0;
     std::vector<std::uint32_t> next_check;
-    for (std::uint32_t c = 0; c < count; ++c) {
+    // Each vertex's verdict depends only on its own triangles, so the order of the vertices
+    // does not matter. Thorough: in order of first appearance in the triangles, whose storage
+    // order is spatial (the bulk's patches, the front's waves), so that a vertex's triangles
+    // are near those of the vertex before (in index order they were cache misses).
+    std::vector<std::uint32_t> visit;
+    if (thorough) {
+      std::vector<std::uint8_t> seen(n, 0);
+      visit.reserve(n);
+      for (const Triangle& t : tris_)
+        for (std::uint32_t v : t)
+          if (!seen[v]) {
+            seen[v] = 1;
+            visit.push_back(v);
+          }
+    }
+    for (std::uint32_t i = 0; i < (thorough ? visit.size() : count); ++i) {
+      const std::uint32_t c = thorough ? visit[i] : i;
       const std::uint32_t v = thorough ? c : check[c];
       const std::uint32_t b0 = start[c], b1 = start[c + 1];
       if (b1 - b0 < 2) continue;
