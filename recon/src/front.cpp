@@ -1144,38 +1144,40 @@ std::size_t Builder::repair_fans(bool thorough) {
   for (int round = 0; round < 8; ++round) {
     // Triangles around the examined vertices, in triangle order: vertex -> triangle lists over
     // all vertices when thorough, otherwise over the few vertices in `check` only.
-    std::vector<std::uint32_t> start, vt;
+    // Thorough: every vertex, numbered in order of first appearance in the triangles, whose
+    // storage order is spatial (the bulk's patches, the front's waves): the lists are then
+    // filled and read near each other (indexed by vertex they were cache misses on large
+    // scans). Each vertex's verdict depends only on its own triangles, so the order of the
+    // vertices does not matter; each list is in triangle order either way.
+    std::vector<std::uint32_t> start, vt, visit;
     if (thorough) {
-      VertexTriangles adj(n, tris_);
-      start = std::move(adj.start);
-      vt = std::move(adj.list);
+      std::vector<std::uint32_t> rank(n, kNone);
+      visit.reserve(n);
+      for (const Triangle& t : tris_)
+        for (std::uint32_t v : t)
+          if (rank[v] == kNone) {
+            rank[v] = static_cast<std::uint32_t>(visit.size());
+            visit.push_back(v);
+          }
+      start.assign(visit.size() + 1, 0);
+      for (const Triangle& t : tris_)
+        for (std::uint32_t v : t) ++start[rank[v] + 1];
+      for (std::size_t r = 0; r < visit.size(); ++r) start[r + 1] += start[r];
+      vt.resize(3 * tris_.size());
+      std::vector<std::uint32_t> cursor(start.begin(), start.end() - 1);
+      for (std::uint32_t id = 0; id < tris_.size(); ++id)
+        for (std::uint32_t v : tris_[id]) vt[cursor[rank[v]]++] = id;
     } else {
       SomeVertexTriangles adj(check, tris_, marked);
       start = std::move(adj.start);
       vt = std::move(adj.list);
     }
-    const std::size_t count = thorough ? n : check.size();
+    const std::size_t count = thorough ? visit.size() : check.size();
     std::vector<std::uint8_t> dead(tris_.size(), 0);
     std::size_t removed = 0;
     std::vector<std::uint32_t> next_check;
-    // Each vertex's verdict depends only on its own triangles, so the order of the vertices
-    // does not matter. Thorough: in order of first appearance in the triangles, whose storage
-    // order is spatial (the bulk's patches, the front's waves), so that a vertex's triangles
-    // are near those of the vertex before (in index order they were cache misses).
-    std::vector<std::uint32_t> visit;
-    if (thorough) {
-      std::vector<std::uint8_t> seen(n, 0);
-      visit.reserve(n);
-      for (const Triangle& t : tris_)
-        for (std::uint32_t v : t)
-          if (!seen[v]) {
-            seen[v] = 1;
-            visit.push_back(v);
-          }
-    }
-    for (std::uint32_t i = 0; i < (thorough ? visit.size() : count); ++i) {
-      const std::uint32_t c = thorough ? visit[i] : i;
-      const std::uint32_t v = thorough ? c : check[c];
+    for (std::uint32_t c = 0; c < count; ++c) {
+      const std::uint32_t v = thorough ? visit[c] : check[c];
       const std::uint32_t b0 = start[c], b1 = start[c + 1];
       if (b1 - b0 < 2) continue;
       const std::uint32_t m = b1 - b0;
