@@ -346,8 +346,8 @@ class Bulk {
       out_.triangles.push_back({local_[q[0]].point, local_[q[1]].point, local_[q[2]].point});
       for (std::uint32_t k = 0; k < 3; ++k) {
         const std::uint32_t x = q[k], y = q[(k + 1) % 3];
-        const std::uint32_t g = twin[3 * t + k];
-        if (!kept(g == Delaunay2::kNone ? g : g / 3))
+        const std::uint32_t g = twin[3 * t + k];  // the same edge in the face across
+        if (g == Delaunay2::kNone || !kept_[g / 3])
           out_.border.push_back({local_[x].point, local_[y].point, local_[q[(k + 2) % 3]].point});
         else if (3 * t + k < g && vstate_[x].border && vstate_[y].border)
           out_.border_chords.push_back({local_[x].point, local_[y].point});

@@ -120,18 +120,21 @@ class EdgeMap {
 /// The triangles around every vertex, as compressed lists: those of vertex v are
 /// list[start[v]] .. list[start[v + 1] - 1], in triangle order. 4 bytes per corner; used by
 /// the passes that need adjacency once (fan repair, front rebuild, orientation) instead of an
-/// array of every half-edge.
+/// array of every half-edge. With `slot`, the lists are indexed by slot(v) (below n) instead.
 struct VertexTriangles {
   std::vector<std::uint32_t> start, list;
 
-  VertexTriangles(std::size_t n, const std::vector<Triangle>& tris) : start(n + 1, 0) {
+  VertexTriangles(std::size_t n, const std::vector<Triangle>& tris)
+      : VertexTriangles(n, tris, [](std::uint32_t v) { return v; }) {}
+  template <class Slot>
+  VertexTriangles(std::size_t n, const std::vector<Triangle>& tris, Slot slot) : start(n + 1, 0) {
     for (const Triangle& t : tris)
-      for (std::uint32_t v : t) ++start[v + 1];
+      for (std::uint32_t v : t) ++start[slot(v) + 1];
     for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
     list.resize(start[n]);
     std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
     for (std::uint32_t t = 0; t < tris.size(); ++t)
-      for (std::uint32_t v : tris[t]) list[fill[v]++] = t;
+      for (std::uint32_t v : tris[t]) list[fill[slot(v)]++] = t;
   }
 };
 
@@ -1159,14 +1162,9 @@ std::size_t Builder::repair_fans(bool thorough) {
             rank[v] = static_cast<std::uint32_t>(visit.size());
             visit.push_back(v);
           }
-      start.assign(visit.size() + 1, 0);
-      for (const Triangle& t : tris_)
-        for (std::uint32_t v : t) ++start[rank[v] + 1];
-      for (std::size_t r = 0; r < visit.size(); ++r) start[r + 1] += start[r];
-      vt.resize(3 * tris_.size());
-      std::vector<std::uint32_t> cursor(start.begin(), start.end() - 1);
-      for (std::uint32_t id = 0; id < tris_.size(); ++id)
-        for (std::uint32_t v : tris_[id]) vt[cursor[rank[v]]++] = id;
+      VertexTriangles adj(visit.size(), tris_, [&](std::uint32_t v) { return rank[v]; });
+      start = std::move(adj.start);
+      vt = std::move(adj.list);
     } else {
       SomeVertexTriangles adj(check, tris_, marked);
       start = std::move(adj.start);
