@@ -190,15 +190,17 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
   if (right_of(points[i0], points[i1], points[i2])) std::swap(i1, i2);
   centre_ = circumcentre(points[i0], points[i1], points[i2]);
 
-  // The sweep order: by distance from the centre (as a float: rounding can only swap points
-  // at nearly the same distance, and one that then lies inside the hull is left out), ties by
-  // index. A stable radix sort, three passes of 11 bits (non-negative floats order like their
-  // bit patterns).
+  // The sweep order: by distance from the centre, ties by index. A stable radix sort on the
+  // distance as a float (three passes of 11 bits; non-negative floats order like their bit
+  // patterns), then each run of equal floats by the exact distance: rounding to float is
+  // monotone, so only points within such a run can be out of order.
   key_.clear();
   order_.clear();
+  dist_.resize(n);
   for (std::uint32_t i = 0; i < n; ++i)
     if (i != i0 && i != i1 && i != i2) {
-      key_.push_back(std::bit_cast<std::uint32_t>(static_cast<float>(dist2(points[i], centre_))));
+      dist_[i] = dist2(points[i], centre_);
+      key_.push_back(std::bit_cast<std::uint32_t>(static_cast<float>(dist_[i])));
       order_.push_back(i);
     }
   sorted_.resize(order_.size());
@@ -215,6 +217,14 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
     }
     order_.swap(sorted_);
     key_.swap(key_sorted_);
+  }
+  for (std::size_t j = 0; j < order_.size();) {
+    std::size_t e = j + 1;
+    while (e < order_.size() && key_[e] == key_[j]) ++e;
+    if (e - j > 1)
+      std::sort(order_.begin() + static_cast<std::ptrdiff_t>(j), order_.begin() + static_cast<std::ptrdiff_t>(e),
+                [&](std::uint32_t a, std::uint32_t b) { return dist_[a] != dist_[b] ? dist_[a] < dist_[b] : a < b; });
+    j = e;
   }
 
   corner_.reserve(6 * n);

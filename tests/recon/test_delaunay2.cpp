@@ -132,6 +132,16 @@ TEST_CASE("the radial-sweep Delaunay triangulation handles cocircular grids, rep
     CHECK(s.inserted == p.size());
     CHECK(dt.triangle_count() == 9);
   }
+  SECTION("two small clusters far apart: every point is swept in order (the distances of a "
+          "cluster's points tie as floats)") {
+    std::mt19937 gen(3);
+    std::uniform_real_distribution<double> u(-1e-3, 1e-3);
+    std::vector<P> p;
+    for (int i = 0; i < 1500; ++i) p.push_back({(i % 2 != 0 ? 100.0 : 0.0) + u(gen), u(gen)});
+    dt.triangulate(p);
+    const Summary s = check_triangulation(dt, p, 1e-18);
+    CHECK(s.inserted == p.size());
+  }
   SECTION("fewer than three distinct points give no triangle") {
     const std::vector<P> p = {{1, 1}, {1, 1}, {2, 2}, {1, 1}};
     dt.triangulate(p);
