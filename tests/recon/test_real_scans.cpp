@@ -260,9 +260,9 @@ TEST_CASE("real scan: casting (thin walls) gives a valid mesh on the surface",
 // Small loops (at most 8 edges, a perimeter of at most 10 local spacings: the front's own
 // definition of a sampling gap) that the front's ear clipping could not close, or that its fan
 // repairs opened again, are closed at the end by the minimum-weight patch of their own vertices
-// where that patch crosses nothing. Measured: the merged scans' 4-edge loop at the base rim (10
-// input points lie inside it), the casting's two 5-edge loops. The merged scans' real hole (6
-// edges, 11 spacings, no input point inside) and every larger loop stay open.
+// where that patch crosses nothing. Measured: two of the merged scans' small loops (10 -> 8
+// loops; before the bulk's own triangulation it was one 4-edge loop at the base rim, 10 input
+// points inside it), the casting's two 5-edge loops (11 -> 9). Every larger loop stays open.
 TEST_CASE("real scan: sampling gaps left after the front are closed with their own vertices",
           "[recon][real][slow]") {
   struct Gaps {
