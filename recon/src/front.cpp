@@ -1776,30 +1776,32 @@ void Builder::grow_from_bulk() {
 
 FrontResult Builder::run() {
   const std::size_t n = p_.size();
-  // Seeds: flattest points first (index breaks ties, so the order is deterministic): a stable
-  // two-pass radix sort on the bits of the flatness (non-negative floats order like their bit
-  // patterns; -0 is made +0), which gives the order of a comparison sort by (flatness, index).
-  std::vector<std::uint32_t> order(n);
+  if (opt_.bulk) grow_from_bulk();
+  // Seeds, among the points still free (states only move forward while the front grows):
+  // flattest first, index breaking ties, so the order is deterministic. A stable two-pass radix
+  // sort on the bits of the flatness (non-negative floats order like their bit patterns; -0 is
+  // made +0), which gives the order of a comparison sort by (flatness, index).
+  std::vector<std::uint32_t> order;
   {
-    std::vector<std::uint32_t> key(n), tmp(n);  // tmp: the input of each pass, ascending index
+    std::vector<std::uint32_t> tmp;  // the input of each pass, ascending index
     for (std::uint32_t i = 0; i < n; ++i)
-      key[i] = std::bit_cast<std::uint32_t>(f_.flatness[i] + 0.0f);
-    for (std::uint32_t i = 0; i < n; ++i) tmp[i] = i;
+      if (state_[i] == VertexState::kFree) tmp.push_back(i);
+    order.resize(tmp.size());
+    auto key = [&](std::uint32_t i) { return std::bit_cast<std::uint32_t>(f_.flatness[i] + 0.0f); };
     std::vector<std::uint32_t> count(1u << 16);
     for (int shift = 0; shift < 32; shift += 16) {
       std::fill(count.begin(), count.end(), 0u);
-      for (std::uint32_t i : tmp) ++count[(key[i] >> shift) & 0xffffu];
+      for (std::uint32_t i : tmp) ++count[(key(i) >> shift) & 0xffffu];
       std::uint32_t sum = 0;
       for (std::uint32_t& c : count) {
         const std::uint32_t here = c;
         c = sum;
         sum += here;
       }
-      for (std::uint32_t i : tmp) order[count[(key[i] >> shift) & 0xffffu]++] = i;
+      for (std::uint32_t i : tmp) order[count[(key(i) >> shift) & 0xffffu]++] = i;
       if (shift == 0) tmp.swap(order);
     }
   }
-  if (opt_.bulk) grow_from_bulk();
   for (std::uint32_t s : order) {
     if (state_[s] != VertexState::kFree) continue;
     if (try_seed(s)) grow();
