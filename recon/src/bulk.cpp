@@ -72,7 +72,7 @@ class Bulk {
       if (count < 3) continue;  // left to the front; its cells stay marked (not re-grown)
       ++stats_.patches;
       stats_.patch_points += count;
-      std::sort(patch.begin(), patch.end());  // grid order: the insertion walks short steps
+      std::sort(patch.begin(), patch.end());  // grid order: the patch's own arrays are spatial
       triangulate(patch, id, dir.cast<double>());
     }
     stats_.triangles = out_.triangles.size() - first_triangle_;
