@@ -55,24 +55,21 @@ double dist2(const std::array<double, 2>& a, const std::array<double, 2>& b) {
   return dx * dx + dy * dy;
 }
 
-/// Squared circumradius of (a, b, c), or infinity when they are (numerically) on one line.
-double circumradius2(const std::array<double, 2>& a, const std::array<double, 2>& b,
-                     const std::array<double, 2>& c) {
-  const double bx = b[0] - a[0], by = b[1] - a[1], cx = c[0] - a[0], cy = c[1] - a[1];
-  const double d = 2 * (bx * cy - by * cx);
-  if (d == 0) return std::numeric_limits<double>::infinity();
-  const double b2 = bx * bx + by * by, c2 = cx * cx + cy * cy;
-  const double x = (cy * b2 - by * c2) / d, y = (bx * c2 - cx * b2) / d;
-  const double r2 = x * x + y * y;
-  return std::isfinite(r2) ? r2 : std::numeric_limits<double>::infinity();
-}
-
 std::array<double, 2> circumcentre(const std::array<double, 2>& a, const std::array<double, 2>& b,
                                    const std::array<double, 2>& c) {
   const double bx = b[0] - a[0], by = b[1] - a[1], cx = c[0] - a[0], cy = c[1] - a[1];
   const double d = 2 * (bx * cy - by * cx);
   const double b2 = bx * bx + by * by, c2 = cx * cx + cy * cy;
   return {a[0] + (cy * b2 - by * c2) / d, a[1] + (bx * c2 - cx * b2) / d};
+}
+
+/// Squared circumradius of (a, b, c), or infinity when they are (numerically) on one line.
+double circumradius2(const std::array<double, 2>& a, const std::array<double, 2>& b,
+                     const std::array<double, 2>& c) {
+  if ((b[0] - a[0]) * (c[1] - a[1]) == (b[1] - a[1]) * (c[0] - a[0]))
+    return std::numeric_limits<double>::infinity();
+  const double r2 = dist2(circumcentre(a, b, c), a);
+  return std::isfinite(r2) ? r2 : std::numeric_limits<double>::infinity();
 }
 
 /// A monotone stand-in for the angle of (dx, dy), in [0, 1]: cheaper than atan2.

@@ -19,7 +19,6 @@
 #include <cassert>
 #include <cmath>
 #include <numbers>
-#include <optional>
 #include <deque>
 #include <queue>
 
@@ -1838,13 +1837,13 @@ FrontResult Builder::run() {
   edges_map_ = EdgeMap(0);  // not needed any more
   {
     // Components can only cross when there are several; the orientation pass needs them too.
-    std::optional<detail::TriangleComponents> components(std::in_place, n, tris_);
-    if (components->count() > 1) {
+    detail::TriangleComponents components(n, tris_);
+    if (components.count() > 1) {
       const std::size_t before = tris_.size();
       drop_crossing_components();
-      if (tris_.size() != before) components.emplace(n, tris_);
+      if (tris_.size() != before) components = detail::TriangleComponents(n, tris_);
     }
-    orient_components(*components);
+    orient_components(components);
   }
   // Final states: vertices in no triangle are outliers; vertices with open fans are boundary.
   std::vector<std::uint8_t> used(n, 0);
