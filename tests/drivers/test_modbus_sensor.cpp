@@ -166,6 +166,29 @@ TEST_CASE("modbus codec: Baumer map plans one 13-register FC04 request and decod
   }
 }
 
+TEST_CASE("modbus codec: a device timestamp too large for int64 nanoseconds is dropped, not "
+          "overflowed",
+          "[drivers][modbus]") {
+  // A fuzzer found 2.3e9 s plus 8.5e15 us (a scaled u32 field) overflowing the nanosecond sum.
+  RegisterMap m;
+  m.fields = {field("distance", 0, FieldType::kF32), field("timestamp_s", 2, FieldType::kU32),
+              field("timestamp_us", 4, FieldType::kU32, WordOrder::kLowFirst, 2e6)};
+  const MapDecoder dec(m);
+  auto image = [](std::uint32_t s, std::uint32_t us) {
+    return std::vector<std::uint16_t>{0x7C37, 0x428B, static_cast<std::uint16_t>(s & 0xFFFF),
+                                      static_cast<std::uint16_t>(s >> 16),
+                                      static_cast<std::uint16_t>(us & 0xFFFF),
+                                      static_cast<std::uint16_t>(us >> 16)};
+  };
+  const Measurement bad = dec.decode(image(2'307'492'233U, 4'234'644'142U));
+  CHECK(bad.status == SensorStatus::kOk);
+  CHECK_FALSE(bad.t_device.has_value());
+  // About 124 years of seconds still give a timestamp, to the nanosecond.
+  const Measurement far = dec.decode(image(3'900'000'000U, 5));
+  REQUIRE(far.t_device.has_value());
+  CHECK(far.t_device->ns == 3'900'000'000'000'000'000LL + 10'000'000'000LL);
+}
+
 TEST_CASE("modbus codec: request planning merges gaps, splits kinds and far fields",
           "[drivers][modbus]") {
   RegisterMap m;
