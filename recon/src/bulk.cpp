@@ -164,9 +164,6 @@ class Bulk {
 
   void triangulate(const std::vector<std::uint32_t>& patch, std::uint32_t id, const Vec3& dir) {
     // A right-handed frame (u, v, dir): counter-clockwise in (u, v) is oriented with the normals.
-    const Vec3 helper = std::abs(dir.x()) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
-    const Vec3 u = helper.cross(dir).normalized();
-    const Vec3 v = dir.cross(u);
     const std::vector<std::uint32_t>& order = grid_.order();
     const Eigen::Vector3f dir_f = dir.cast<float>();
     local_.clear();
@@ -174,6 +171,7 @@ class Bulk {
     lpos_.clear();
     lnrm_.clear();
     lspc_.clear();
+    Vec3 sum = Vec3::Zero();
     for (std::size_t i = 0; i < patch.size(); ++i) {
       const Cell& c = cells_[patch[i]];
       for (std::uint32_t s = c.first; s < c.last; ++s) {
@@ -181,12 +179,25 @@ class Bulk {
         // Turning points and normals outside the patch's cone are left to the front.
         if (!eligible(pt) || f_.normal[pt].dot(dir_f) < cos_theta_) continue;
         local_.push_back({pt, s, static_cast<std::uint32_t>(i)});
-        xy_.push_back({p_[pt].dot(u), p_[pt].dot(v)});
         lpos_.push_back(p_[pt]);
         lnrm_.push_back(f_.normal[pt].cast<double>());
         lspc_.push_back(spacing(pt));
+        sum += lnrm_.back();
       }
     }
+    // Projected along the mean normal of the patch's points (less tilt than the seed cell's
+    // direction, so the planar Delaunay choice is nearer the surface's own), unless some point
+    // would then be steeper than the cone allows.
+    Vec3 axis = sum.norm() > 0 ? Vec3(sum.normalized()) : dir;
+    for (const Vec3& nm : lnrm_)
+      if (nm.dot(axis) < cos_theta_) {
+        axis = dir;
+        break;
+      }
+    const Vec3 helper = std::abs(axis.x()) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+    const Vec3 u = helper.cross(axis).normalized();
+    const Vec3 v = axis.cross(u);
+    for (const Vec3& q : lpos_) xy_.push_back({q.dot(u), q.dot(v)});
     dt_.triangulate(xy_);
     // Too few points, or all in one line: left to the front. So is a point whose projection
     // repeats one already in.

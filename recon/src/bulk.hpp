@@ -26,9 +26,11 @@ struct BulkOptions {
   double cos_corner = 0.8660254037844387;     // cos 30 degrees
   double spacing_cap = 0;                     // the front's cap on the local spacing (> 0)
   int max_valence = 16;
-  /// Every point of a patch has its normal within this angle of the patch's direction, so the
-  /// patch is a height field over the plane normal to it (locally).
-  double patch_cone_deg = 30;
+  /// Every point of a patch has its normal within this angle of the seed cell's direction and
+  /// of the projection axis (the patch's mean normal, or else the seed's), so the patch is a
+  /// height field over the plane normal to that axis (locally). 60: the bunny's patches hold 62
+  /// % of its triangles instead of 53 % at 30 (recon/README, Bulk).
+  double patch_cone_deg = 60;
   /// Patches stop growing at this many points: the triangulation of one patch is live at a
   /// time, so this bounds the stage's memory.
   std::size_t max_patch_points = std::size_t{1} << 17;
@@ -54,7 +56,8 @@ struct BulkStats {
 /// Triangles over the patches: grid cells grown breadth-first while the mean normal of their
 /// eligible points (not `excluded`: turning points and points near them) stays within the cone
 /// around the first cell's; each patch's eligible points with normals in the cone are projected
-/// on the plane normal to its direction and triangulated (Delaunay, exact predicates). A triangle is
+/// on the plane normal to their mean normal (the seed's direction where some normal would be
+/// outside the cone around the mean) and triangulated (Delaunay, exact predicates). A triangle is
 /// kept when it meets the front's rules (above) and no point outside its patch lies in its
 /// circumsphere (tested where the triangle comes near the patch's border); then every vertex
 /// is left with a single fan of at most max_valence edges. The triangles are oriented with the

@@ -50,7 +50,7 @@ struct FrontOptions {
   /// cannot see the front near it, against every triangle near it. Off only for comparison.
   bool crossing_guard = true;
   /// Start from the bulk: the flat, well-sampled interior (away from turning points, normals
-  /// within a 30-degree cone per patch) is triangulated by planar Delaunay patches that meet
+  /// within a 60-degree cone per patch) is triangulated by planar Delaunay patches that meet
   /// the rules above, and the front grows from their borders into the rest. Off: the front
   /// grows everything from seed triangles.
   bool bulk = true;
