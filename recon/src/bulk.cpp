@@ -163,7 +163,6 @@ class Bulk {
   }
 
   void triangulate(const std::vector<std::uint32_t>& patch, std::uint32_t id, const Vec3& dir) {
-    // A right-handed frame (u, v, dir): counter-clockwise in (u, v) is oriented with the normals.
     const std::vector<std::uint32_t>& order = grid_.order();
     const Eigen::Vector3f dir_f = dir.cast<float>();
     local_.clear();
@@ -194,6 +193,8 @@ class Bulk {
         axis = dir;
         break;
       }
+    // A right-handed frame (u, v, axis): counter-clockwise in (u, v) is oriented with the
+    // normals (every one within the cone around the axis).
     const Vec3 helper = std::abs(axis.x()) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
     const Vec3 u = helper.cross(axis).normalized();
     const Vec3 v = axis.cross(u);
