@@ -15,6 +15,7 @@
 #include "triangle_shape.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <bit>
 #include <cassert>
 #include <cmath>
@@ -436,6 +437,9 @@ class Builder {
   // --- growth --------------------------------------------------------------------------------
   bool try_seed(std::uint32_t s);
   bool process(std::uint32_t eid, const Mode& mode);
+  /// Whether the front loop through edge `start` has at most fill_max_edges edges and does not
+  /// pass through v.
+  [[nodiscard]] bool small_loop(std::uint32_t start, std::uint32_t v) const;
   bool valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius,
              bool second_chance);
   [[nodiscard]] bool feature_fits(std::uint32_t a, std::uint32_t b, std::uint32_t p,
@@ -569,6 +573,30 @@ class Builder {
   std::vector<std::uint32_t> free_edges_;
   EdgeMap edges_map_;
   std::vector<Triangle> tris_;
+  /// Union-find over the points: two points are in one set when triangles connect them (kept
+  /// up to date as triangles are added; rebuilt on the next look-up after some were removed).
+  /// For the loop-merge rule.
+  std::vector<std::uint32_t> piece_;
+  bool pieces_stale_ = true;
+  std::uint32_t piece_of(std::uint32_t v) {
+    while (piece_[v] != v) v = piece_[v] = piece_[piece_[v]];
+    return v;
+  }
+  void join_pieces(const Triangle& t) {
+    const std::uint32_t r = piece_of(t[0]);
+    piece_[piece_of(t[1])] = r;
+    piece_[piece_of(t[2])] = r;
+  }
+  void rebuild_pieces() {
+    piece_.resize(p_.size());
+    std::iota(piece_.begin(), piece_.end(), 0u);
+    for (const Triangle& t : tris_) join_pieces(t);
+    pieces_stale_ = false;
+  }
+  bool same_piece(std::uint32_t u, std::uint32_t v) {
+    if (pieces_stale_) rebuild_pieces();
+    return piece_of(u) == piece_of(v);
+  }
   // The order of work: edges with a small angle at either end first (ears, smallest angle
   // first: a heap), then the others first in, first out (the wave: a plain queue).
   std::priority_queue<QueueItem, std::vector<QueueItem>, std::greater<>> ears_;
@@ -715,6 +743,16 @@ bool Builder::closes_empty_triangle(std::uint32_t u, std::uint32_t w, std::uint3
   return found;
 }
 
+bool Builder::small_loop(std::uint32_t start, std::uint32_t v) const {
+  std::uint32_t e = start;
+  for (std::size_t n = 0; n < opt_.fill_max_edges; ++n) {
+    if (edges_[e].a == v) return false;
+    e = edges_[e].next;
+    if (e == start) return true;
+  }
+  return false;
+}
+
 bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double radius,
                     bool second_chance) {
   const FrontEdge& e = edges_[eid];
@@ -740,6 +778,16 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
       if (*v != e.next || edges_[*v].b != p) return false;
       close_b = true;
     }
+  }
+  // A front point on another loop of the same piece of mesh: the triangle would merge the two
+  // loops and make a handle. Where one of them is small (a sampling gap, for the gap closing),
+  // that handle is false: refused. (Real tunnels, such as bolt holes, are larger.)
+  if (!close_a && !close_b && state_[p] == VertexState::kFront && same_piece(a, p)) {
+    // (A small loop that misses p, or a small loop through p that misses a, is another loop
+    // than the other's: no walk of a long loop is needed.)
+    const bool small_e = small_loop(eid, p);
+    for (std::uint32_t o = head_out_[p]; o != kNone; o = edges_[o].next_out)
+      if (small_e || small_loop(o, a)) return false;
   }
   if (!close_a && valence_[a] >= opt_.max_valence) return false;
   if (!close_b && valence_[b] >= opt_.max_valence) return false;
@@ -1224,6 +1272,7 @@ std::size_t Builder::repair_fans(bool thorough) {
     for (std::size_t t = 0; t < tris_.size(); ++t)
       if (!dead[t]) tris_[w++] = tris_[t];
     tris_.resize(w);
+    pieces_stale_ = true;
     res_.removed_fan_triangles += removed;
     if (thorough) front_stale_ = true;  // triangles went away behind the front's back
     if (!thorough) {
@@ -1623,6 +1672,7 @@ void Builder::release_corners(std::uint32_t v) {
 void Builder::push_triangle(const Triangle& t) {
   const auto id = static_cast<std::uint32_t>(tris_.size());
   tris_.push_back(t);
+  if (!pieces_stale_) join_pieces(t);
   if (corner_head_.empty()) return;
   for (std::uint32_t v : t) link_corner(v, id);  // new corners are never closed yet
   mark_bent(t);
@@ -1754,6 +1804,7 @@ void Builder::grow_from_bulk() {
   bulk.triangles.swap(tris_);  // empty, with the storage reserved for the whole mesh
   detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);
   tris_.swap(bulk.triangles);
+  pieces_stale_ = true;
   res_.bulk_patches = stats.patches;
   res_.bulk_triangles = stats.triangles;
   if (tris_.empty()) return;
