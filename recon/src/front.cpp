@@ -1799,6 +1799,7 @@ void Builder::grow_from_bulk() {
   bo.spacing_cap = max_spacing_;
   bo.max_valence = opt_.max_valence;
   bo.max_patch_points = opt_.bulk_patch_points;
+  bo.patch_cone_deg = opt_.bulk_patch_cone_deg;
   detail::BulkStats stats;
   detail::BulkMesh bulk;
   bulk.triangles.swap(tris_);  // empty, with the storage reserved for the whole mesh
@@ -1930,6 +1931,8 @@ std::vector<std::string> FrontOptions::validate() const {
     errors.push_back("relaxed_min_angle_deg must be in [0, min_angle_deg]");
   if (max_valence < 6 || max_valence > 250) errors.push_back("max_valence must be in [6, 250]");
   if (bulk_patch_points < 3) errors.push_back("bulk_patch_points must be at least 3");
+  if (!(bulk_patch_cone_deg > 0 && bulk_patch_cone_deg < 90))
+    errors.push_back("bulk_patch_cone_deg must be in (0, 90) degrees");
   return errors;
 }
 

@@ -344,4 +344,10 @@ TEST_CASE("degenerate inputs give clear errors", "[recon]") {
   bad.cube_mode = ReconstructOptions::CubeMode::kFixed;
   bad.cube_mm = -1;
   CHECK_THROWS_AS(reconstruct(test::sphere_points(100), bad), scanmesh::ConfigError);
+  // A patch cone of 90 degrees or more would not make the patch a height field.
+  for (const double cone : {0.0, 90.0, 120.0}) {
+    ReconstructOptions wide;
+    wide.front.bulk_patch_cone_deg = cone;
+    CHECK_THROWS_WITH(reconstruct(test::sphere_points(100), wide), Contains("bulk_patch_cone_deg"));
+  }
 }

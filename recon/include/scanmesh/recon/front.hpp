@@ -59,6 +59,11 @@ struct FrontOptions {
   /// points' data in the cache: on the synthetic scan the front took 2.6 s with it against
   /// 2.9 s with 131,072 (4,096: 2.8 s, more seams).
   std::size_t bulk_patch_points = std::size_t{1} << 14;
+  /// A bulk patch takes points whose normals lie within this angle (degrees, in (0, 90)) of its
+  /// seed cell's mean normal and of its projection axis: wider cones make larger patches and
+  /// shorter seams for the front to zip (the bunny: 53 % of the triangles from the bulk at 30,
+  /// 62 % at 60).
+  double bulk_patch_cone_deg = 60;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
