@@ -779,16 +779,6 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
       close_b = true;
     }
   }
-  // A front point on another loop of the same piece of mesh: the triangle would merge the two
-  // loops and make a handle. Where one of them is small (a sampling gap, for the gap closing),
-  // that handle is false: refused. (Real tunnels, such as bolt holes, are larger.)
-  if (!close_a && !close_b && state_[p] == VertexState::kFront && same_piece(a, p)) {
-    // (A small loop that misses p, or a small loop through p that misses a, is another loop
-    // than the other's: no walk of a long loop is needed.)
-    const bool small_e = small_loop(eid, p);
-    for (std::uint32_t o = head_out_[p]; o != kNone; o = edges_[o].next_out)
-      if (small_e || small_loop(o, a)) return false;
-  }
   if (!close_a && valence_[a] >= opt_.max_valence) return false;
   if (!close_b && valence_[b] >= opt_.max_valence) return false;
   if (!close_a && !close_b && valence_[p] + 2 > opt_.max_valence) return false;
@@ -867,6 +857,20 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
                       std::abs(f_.normal[b].dot(n1f)) >= kCosFlat &&
                       std::abs(f_.normal[p].dot(n1f)) >= kCosFlat;
     if (crosses({b, a, p}, radius, flat)) return false;
+  }
+  // A front point on another loop of the same piece of mesh: the triangle would merge the two
+  // loops and make a handle. Where one of them is small (a sampling gap, for the gap closing),
+  // that handle is false: refused. (Real tunnels, such as bolt holes, are larger.)
+  // (A small loop that misses p, or a small loop through p that misses a, is another loop than
+  // the other's: no walk of a long loop is needed. Tested last, for a candidate that passed every
+  // other test: on the seams between bulk patches most candidates are front points, and the
+  // walks are cache misses. The pieces are looked up last of all: after the bulk or a fan
+  // repair the first look-up rebuilds them, and most merges involve no small loop.)
+  if (!close_a && !close_b && state_[p] == VertexState::kFront) {
+    bool small = small_loop(eid, p);
+    for (std::uint32_t o = head_out_[p]; o != kNone && !small; o = edges_[o].next_out)
+      small = small_loop(o, a);
+    if (small && same_piece(a, p)) return false;
   }
   return true;
 }
