@@ -15,7 +15,6 @@
 #include "triangle_shape.hpp"
 
 #include <algorithm>
-#include <numeric>
 #include <bit>
 #include <cassert>
 #include <cmath>
@@ -573,29 +572,18 @@ class Builder {
   std::vector<std::uint32_t> free_edges_;
   EdgeMap edges_map_;
   std::vector<Triangle> tris_;
-  /// Union-find over the points: two points are in one set when triangles connect them (kept
-  /// up to date as triangles are added; rebuilt on the next look-up after some were removed).
-  /// For the loop-merge rule.
-  std::vector<std::uint32_t> piece_;
+  /// The pieces of mesh: two points are in one set when triangles connect them (kept up to
+  /// date as triangles are added; rebuilt on the next look-up after some were removed). For the
+  /// loop-merge rule.
+  detail::VertexSets pieces_;
   bool pieces_stale_ = true;
-  std::uint32_t piece_of(std::uint32_t v) {
-    while (piece_[v] != v) v = piece_[v] = piece_[piece_[v]];
-    return v;
-  }
-  void join_pieces(const Triangle& t) {
-    const std::uint32_t r = piece_of(t[0]);
-    piece_[piece_of(t[1])] = r;
-    piece_[piece_of(t[2])] = r;
-  }
-  void rebuild_pieces() {
-    piece_.resize(p_.size());
-    std::iota(piece_.begin(), piece_.end(), 0u);
-    for (const Triangle& t : tris_) join_pieces(t);
-    pieces_stale_ = false;
-  }
   bool same_piece(std::uint32_t u, std::uint32_t v) {
-    if (pieces_stale_) rebuild_pieces();
-    return piece_of(u) == piece_of(v);
+    if (pieces_stale_) {
+      pieces_.reset(p_.size());
+      for (const Triangle& t : tris_) pieces_.join(t);
+      pieces_stale_ = false;
+    }
+    return pieces_.find(u) == pieces_.find(v);
   }
   // The order of work: edges with a small angle at either end first (ears, smallest angle
   // first: a heap), then the others first in, first out (the wave: a plain queue).
@@ -1676,7 +1664,7 @@ void Builder::release_corners(std::uint32_t v) {
 void Builder::push_triangle(const Triangle& t) {
   const auto id = static_cast<std::uint32_t>(tris_.size());
   tris_.push_back(t);
-  if (!pieces_stale_) join_pieces(t);
+  if (!pieces_stale_) pieces_.join(t);
   if (corner_head_.empty()) return;
   for (std::uint32_t v : t) link_corner(v, id);  // new corners are never closed yet
   mark_bent(t);
