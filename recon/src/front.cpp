@@ -848,12 +848,12 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   }
   // A front point on another loop of the same piece of mesh: the triangle would merge the two
   // loops and make a handle. Where one of them is small (a sampling gap, for the gap closing),
-  // that handle is false: refused. (Real tunnels, such as bolt holes, are larger.)
-  // (A small loop that misses p, or a small loop through p that misses a, is another loop than
-  // the other's: no walk of a long loop is needed. Tested last, for a candidate that passed every
-  // other test: on the seams between bulk patches most candidates are front points, and the
-  // walks are cache misses. The pieces are looked up last of all: after the bulk or a fan
-  // repair the first look-up rebuilds them, and most merges involve no small loop.)
+  // that handle is false: refused (real tunnels, such as bolt holes, are larger). A small loop
+  // that misses p, or a small loop through p that misses a, is another loop than the other's,
+  // so no long loop is walked. Tested last, for a candidate that passed every other test (on
+  // the seams between bulk patches most candidates are front points, and the walks are cache
+  // misses), and the pieces last of all (the first look-up after the bulk or a fan repair
+  // rebuilds them; most merges involve no small loop).
   if (!close_a && !close_b && state_[p] == VertexState::kFront) {
     bool small = small_loop(eid, p);
     for (std::uint32_t o = head_out_[p]; o != kNone && !small; o = edges_[o].next_out)
