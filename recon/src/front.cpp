@@ -125,15 +125,19 @@ struct VertexTriangles {
 
   VertexTriangles(std::size_t n, const std::vector<Triangle>& tris)
       : VertexTriangles(n, tris, [](std::uint32_t v) { return v; }) {}
+  /// slot(v) may be kNone for a vertex left out.
   template <class Slot>
   VertexTriangles(std::size_t n, const std::vector<Triangle>& tris, Slot slot) : start(n + 1, 0) {
+    constexpr std::uint32_t kOut = 0xffffffffu;
     for (const Triangle& t : tris)
-      for (std::uint32_t v : t) ++start[slot(v) + 1];
+      for (std::uint32_t v : t)
+        if (const std::uint32_t s = slot(v); s != kOut) ++start[s + 1];
     for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
     list.resize(start[n]);
     std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
     for (std::uint32_t t = 0; t < tris.size(); ++t)
-      for (std::uint32_t v : tris[t]) list[fill[slot(v)]++] = t;
+      for (std::uint32_t v : tris[t])
+        if (const std::uint32_t s = slot(v); s != kOut) list[fill[s]++] = t;
   }
 };
 
@@ -485,6 +489,10 @@ class Builder {
   /// those the front shows with two open sectors (a vertex where two closed fans touch has no
   /// front edge at all).
   std::size_t repair_fans(bool thorough = false);
+  /// Number of fans of v's m triangles ids[0..m) (union-find in `fan`, sizes in `size`).
+  std::size_t fans_of(std::uint32_t v, const std::uint32_t* ids, std::uint32_t m,
+                      std::vector<int>& fan, std::vector<std::uint32_t>& size) const;
+  void check_bulk_fans() const;
   void orient_components(detail::TriangleComponents& components);
   /// Removes every smaller component that crosses another component (see the definition).
   void drop_crossing_components();
@@ -591,6 +599,10 @@ class Builder {
   std::deque<QueueItem> wave_;
   std::vector<std::uint32_t> deferred_;
   bool front_stale_ = false;  // repair_fans removed triangles; rebuild_front() not yet called
+  // tris_[0, bulk_kept_) are the bulk's triangles, none rewritten; fan_dirty_ lists (with
+  // repeats) the corners of the bulk's triangles removed or rewritten (repair_fans).
+  std::size_t bulk_kept_ = 0;
+  std::vector<std::uint32_t> fan_dirty_;
   // Generation of the edges' no-candidate marks (process); changed by every step that removes
   // triangles or rebuilds the front, after which point states can move back.
   std::uint16_t candidate_gen_ = 1;
@@ -1164,6 +1176,52 @@ void Builder::fill_small_loops() {
   }
 }
 
+std::size_t Builder::fans_of(std::uint32_t v, const std::uint32_t* ids, std::uint32_t m,
+                             std::vector<int>& fan, std::vector<std::uint32_t>& size) const {
+  // union-find over the triangles of v: join triangles sharing an edge (v, w)
+  fan.assign(m, -1);
+  auto find = [&](int i) {
+    while (fan[static_cast<std::size_t>(i)] >= 0) i = fan[static_cast<std::size_t>(i)];
+    return i;
+  };
+  for (std::uint32_t i = 0; i < m; ++i)
+    for (std::uint32_t j = i + 1; j < m; ++j) {
+      const Triangle &ti = tris_[ids[i]], &tj = tris_[ids[j]];
+      int shared = 0;
+      for (std::uint32_t x : ti)
+        if (x != v && (x == tj[0] || x == tj[1] || x == tj[2])) ++shared;
+      if (shared == 0) continue;
+      const int ri = find(static_cast<int>(i)), rj = find(static_cast<int>(j));
+      if (ri != rj) fan[static_cast<std::size_t>(rj)] = ri;
+    }
+  size.assign(m, 0);
+  std::size_t roots = 0;
+  for (std::uint32_t i = 0; i < m; ++i) {
+    const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
+    if (size[r]++ == 0) ++roots;
+  }
+  return roots;
+}
+
+void Builder::check_bulk_fans() const {
+  // Debug builds: the vertices the thorough fan check skipped (all their triangles the bulk's,
+  // untouched) have one fan indeed.
+  if (bulk_kept_ == 0) return;
+  std::vector<std::uint8_t> examined(p_.size(), 0);
+  for (std::size_t t = bulk_kept_; t < tris_.size(); ++t)
+    for (std::uint32_t v : tris_[t]) examined[v] = 1;
+  for (std::uint32_t v : fan_dirty_) examined[v] = 1;
+  const VertexTriangles adj(p_.size(), tris_);
+  std::vector<int> fan;
+  std::vector<std::uint32_t> size;
+  for (std::uint32_t v = 0; v < p_.size(); ++v) {
+    const std::uint32_t m = adj.start[v + 1] - adj.start[v];
+    if (examined[v] || m < 2) continue;
+    [[maybe_unused]] const std::size_t fans = fans_of(v, adj.list.data() + adj.start[v], m, fan, size);
+    assert(fans == 1 && "a vertex of untouched bulk triangles has several fans");
+  }
+}
+
 std::size_t Builder::repair_fans(bool thorough) {
   forget_no_candidates();
   std::size_t total = 0;
@@ -1191,17 +1249,31 @@ std::size_t Builder::repair_fans(bool thorough) {
     // filled and read near each other (indexed by vertex they were cache misses on large
     // scans). Each vertex's verdict depends only on its own triangles, so the order of the
     // vertices does not matter; each list is in triangle order either way.
+    // Thorough after the bulk: a vertex whose triangles are all the bulk's, none of them
+    // removed or rewritten since, still has the single fan the bulk left it (the bulk's
+    // guarantee; a point belongs to one patch): only the corners of the later triangles and
+    // of the bulk triangles changed (`fan_dirty_`) are examined. On a scan the bulk covers
+    // that skips most vertices (debug builds check them all at the end of run()).
     std::vector<std::uint32_t> start, vt, visit;
     if (thorough) {
+      constexpr std::uint32_t kSelected = kNone - 1;
       std::vector<std::uint32_t> rank(n, kNone);
-      visit.reserve(n);
+      const bool restricted = bulk_kept_ > 0;
+      if (restricted) {
+        for (std::size_t t = bulk_kept_; t < tris_.size(); ++t)
+          for (std::uint32_t v : tris_[t]) rank[v] = kSelected;
+        for (std::uint32_t v : fan_dirty_) rank[v] = kSelected;
+      }
+      const std::uint32_t wanted = restricted ? kSelected : kNone;
+      visit.reserve(restricted ? 0 : n);
       for (const Triangle& t : tris_)
         for (std::uint32_t v : t)
-          if (rank[v] == kNone) {
+          if (rank[v] == wanted) {
             rank[v] = static_cast<std::uint32_t>(visit.size());
             visit.push_back(v);
           }
-      VertexTriangles adj(visit.size(), tris_, [&](std::uint32_t v) { return rank[v]; });
+      VertexTriangles adj(visit.size(), tris_,
+                          [&](std::uint32_t v) { return rank[v] < kSelected ? rank[v] : kNone; });
       start = std::move(adj.start);
       vt = std::move(adj.list);
     } else {
@@ -1222,29 +1294,11 @@ std::size_t Builder::repair_fans(bool thorough) {
       // is the following triangle's `prev`, as in a consistently oriented fan) and back reaches
       // all m: one fan. Otherwise the exact test below decides.
       if (one_oriented_fan(v, vt.data() + b0, m)) continue;
-      // union-find over the triangles of v: join triangles sharing an edge (v, w)
-      fan.assign(m, -1);
+      if (fans_of(v, vt.data() + b0, m, fan, size) < 2) continue;
       auto find = [&](int i) {
         while (fan[static_cast<std::size_t>(i)] >= 0) i = fan[static_cast<std::size_t>(i)];
         return i;
       };
-      for (std::uint32_t i = 0; i < m; ++i)
-        for (std::uint32_t j = i + 1; j < m; ++j) {
-          const Triangle &ti = tris_[vt[b0 + i]], &tj = tris_[vt[b0 + j]];
-          int shared = 0;
-          for (std::uint32_t x : ti)
-            if (x != v && (x == tj[0] || x == tj[1] || x == tj[2])) ++shared;
-          if (shared == 0) continue;
-          const int ri = find(static_cast<int>(i)), rj = find(static_cast<int>(j));
-          if (ri != rj) fan[static_cast<std::size_t>(rj)] = ri;
-        }
-      size.assign(m, 0);
-      std::size_t roots = 0;
-      for (std::uint32_t i = 0; i < m; ++i) {
-        const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
-        if (size[r]++ == 0) ++roots;
-      }
-      if (roots < 2) continue;
       std::size_t keep = 0;
       for (std::size_t i = 0; i < m; ++i)
         if (size[i] > size[keep]) keep = i;
@@ -1260,10 +1314,17 @@ std::size_t Builder::repair_fans(bool thorough) {
     }
     if (removed == 0) break;
     total += removed;
-    std::size_t w = 0;
-    for (std::size_t t = 0; t < tris_.size(); ++t)
-      if (!dead[t]) tris_[w++] = tris_[t];
+    std::size_t w = 0, bulk_removed = 0;
+    for (std::size_t t = 0; t < tris_.size(); ++t) {
+      if (!dead[t]) {
+        tris_[w++] = tris_[t];
+      } else if (t < bulk_kept_) {
+        ++bulk_removed;
+        for (std::uint32_t v : tris_[t]) fan_dirty_.push_back(v);
+      }
+    }
     tris_.resize(w);
+    bulk_kept_ -= bulk_removed;
     pieces_stale_ = true;
     res_.removed_fan_triangles += removed;
     if (thorough) front_stale_ = true;  // triangles went away behind the front's back
@@ -1429,6 +1490,7 @@ void Builder::split_flat_triangle_holes() {
         for (std::size_t k = 0; k < 3; ++k)
           if (tris_[t][k] == z && tris_[t][(k + 1) % 3] == x && tris_[t][(k + 2) % 3] == o) at = t;
       if (at == tris_.size()) continue;
+      if (at < bulk_kept_) fan_dirty_.insert(fan_dirty_.end(), {z, x, o});
       tris_[at] = {z, inner.front().second, o};
       for (std::size_t k = 1; k < inner.size(); ++k)
         tris_.push_back({inner[k - 1].second, inner[k].second, o});
@@ -1510,6 +1572,8 @@ void Builder::rebuild_front() {
 /// lie on.
 void Builder::drop_crossing_components() {
   forget_no_candidates();
+  bulk_kept_ = 0;  // the triangles may move: later fan checks look at every vertex
+  fan_dirty_.clear();
   res_.dropped_components += remove_crossing_components(p_, tris_);
 }
 
@@ -1797,6 +1861,7 @@ void Builder::grow_from_bulk() {
   bulk.triangles.swap(tris_);  // empty, with the storage reserved for the whole mesh
   detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);
   tris_.swap(bulk.triangles);
+  bulk_kept_ = tris_.size();
   pieces_stale_ = true;
   res_.bulk_patches = stats.patches;
   res_.bulk_triangles = stats.triangles;
@@ -1877,6 +1942,7 @@ FrontResult Builder::run() {
     rebuild_front();
     if (round < 2) fill_small_loops();
   }
+  if (check_every_step_) check_bulk_fans();
   if (front_stale_) rebuild_front();  // a slit closed above: the states and the orientation read it
   edges_map_ = EdgeMap(0);  // not needed any more
   {
