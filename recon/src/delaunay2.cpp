@@ -224,6 +224,17 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
     j = e;
   }
 
+  // The sweep runs on the points renumbered in its order (seed first): the points near the
+  // hull, which every insertion and flip reads, are then the last few inserted, near each other
+  // in memory, instead of scattered over the patch. The triangulation is the same; its corners
+  // are numbered back at the end.
+  perm_.clear();
+  perm_.insert(perm_.end(), {i0, i1, i2});
+  perm_.insert(perm_.end(), order_.begin(), order_.end());
+  swept_.resize(n);
+  for (std::size_t k = 0; k < n; ++k) swept_[k] = points[perm_[k]];
+  const std::span<const std::array<double, 2>> sp = swept_;
+  p_ = sp;
   corner_.reserve(6 * n);
   twin_.reserve(6 * n);
   hull_next_.assign(n, kNone);  // kNone: not on the hull (yet, or any more)
@@ -231,20 +242,20 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
   hull_edge_.resize(n);
   hash_.assign(static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(n)))), kNone);
 
-  add_triangle(i0, i1, i2, kNone, kNone, kNone);
-  hull_next_[i0] = i1;
-  hull_next_[i1] = i2;
-  hull_next_[i2] = i0;
-  hull_prev_[i1] = i0;
-  hull_prev_[i2] = i1;
-  hull_prev_[i0] = i2;
-  for (const std::uint32_t s : {i0, i1, i2}) hash_[hash_key(points[s])] = s;
-  std::uint32_t hull_start = i0;
+  add_triangle(0, 1, 2, kNone, kNone, kNone);
+  hull_next_[0] = 1;
+  hull_next_[1] = 2;
+  hull_next_[2] = 0;
+  hull_prev_[1] = 0;
+  hull_prev_[2] = 1;
+  hull_prev_[0] = 2;
+  for (const std::uint32_t s : {0u, 1u, 2u}) hash_[hash_key(sp[s])] = s;
+  std::uint32_t hull_start = 0;
 
   std::uint32_t last = kNone;
-  for (const std::uint32_t i : order_) {
-    const auto& q = points[i];
-    if (last != kNone && q == points[last]) continue;  // a repeat of the point before
+  for (std::uint32_t i = 3; i < n; ++i) {
+    const auto& q = sp[i];
+    if (last != kNone && q == sp[last]) continue;  // a repeat of the point before
     last = i;
     // A hull vertex near q's direction from the centre, then the first hull edge q sees.
     const std::uint32_t key = hash_key(q);
@@ -258,7 +269,7 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
     }
     start = hull_prev_[start];
     std::uint32_t e = start;
-    while (!right_of(points[e], points[hull_next_[e]], q)) {
+    while (!right_of(sp[e], sp[hull_next_[e]], q)) {
       e = hull_next_[e];
       if (e == start) {
         e = kNone;
@@ -269,13 +280,13 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
     std::uint32_t nx = hull_next_[e];
     legalize(add_triangle(e, i, nx, kNone, kNone, hull_edge_[e]) + 2);
     // Walk forward, then backward, over the other hull edges q sees.
-    for (std::uint32_t nn = hull_next_[nx]; right_of(points[nx], points[nn], q); nn = hull_next_[nx]) {
+    for (std::uint32_t nn = hull_next_[nx]; right_of(sp[nx], sp[nn], q); nn = hull_next_[nx]) {
       legalize(add_triangle(nx, i, nn, hull_edge_[i], kNone, hull_edge_[nx]) + 2);
       hull_next_[nx] = kNone;
       nx = nn;
     }
     if (e == start)
-      for (std::uint32_t pe = hull_prev_[e]; right_of(points[pe], points[e], q); pe = hull_prev_[e]) {
+      for (std::uint32_t pe = hull_prev_[e]; right_of(sp[pe], sp[e], q); pe = hull_prev_[e]) {
         legalize(add_triangle(pe, i, e, kNone, hull_edge_[e], hull_edge_[pe]) + 2);
         hull_next_[e] = kNone;
         e = pe;
@@ -285,16 +296,20 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
     hull_prev_[nx] = i;
     hull_next_[i] = nx;
     hash_[hash_key(q)] = i;
-    hash_[hash_key(points[e])] = e;
+    hash_[hash_key(sp[e])] = e;
     hull_start = i;
   }
 
-  for (std::uint32_t h = 0; h < corner_.size(); ++h) out_[corner_[h]] = h;
+  for (std::uint32_t h = 0; h < corner_.size(); ++h) {
+    corner_[h] = perm_[corner_[h]];
+    out_[corner_[h]] = h;
+  }
   std::uint32_t v = hull_start;
   do {
-    out_[v] = hull_edge_[v];
+    out_[perm_[v]] = hull_edge_[v];
     v = hull_next_[v];
   } while (v != hull_start);
+  p_ = points;
 }
 
 }  // namespace scanmesh::recon::detail

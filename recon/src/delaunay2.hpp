@@ -53,6 +53,8 @@ class Delaunay2 {
   std::vector<std::uint32_t> hull_next_, hull_prev_, hull_edge_, hash_, stack_;
   std::vector<std::uint32_t> order_, sorted_, key_, key_sorted_;  // the sweep order
   std::vector<double> dist_;  // per point: squared distance from the centre
+  std::vector<std::uint32_t> perm_;  // sweep position -> point
+  std::vector<std::array<double, 2>> swept_;  // the points in sweep order
   std::array<double, 2> centre_{};
 };
 
