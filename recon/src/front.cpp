@@ -1649,9 +1649,14 @@ void Builder::mark_turning_points() {
   const double theta = std::acos(cos_normal_);
   const std::vector<std::uint32_t>& order = grid_.order();
   const std::vector<Eigen::Vector3f>& nrm = f_.normal;
-  std::vector<std::uint32_t> cell_first;
-  std::vector<Eigen::Vector3f> mean;
-  std::vector<float> limit;  // a normal below this cosine with the mean may be too far away
+  // Per cell: its first slot, the cone (mean, spread), limit = cos(theta - spread) (2: no
+  // cone within theta), and for the cell-pair test cos and sin of spread and of theta - spread.
+  struct Cone {
+    Eigen::Vector3f mean;
+    float limit, cos_s, sin_s, cos_rest, sin_rest;
+  };
+  std::vector<std::uint32_t> cell_first, cell_of(n);  // cell_of: per slot, its cell
+  std::vector<Cone> cone;
   grid_.for_each_cell([&](std::int64_t, std::int64_t, std::int64_t, std::uint32_t first,
                           std::uint32_t last) {
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
@@ -1661,22 +1666,39 @@ void Builder::mark_turning_points() {
     float lowest = 1;
     for (std::uint32_t s = first; s < last; ++s) lowest = std::min(lowest, m.dot(nrm[order[s]]));
     const double spread = std::acos(std::clamp<double>(lowest, -1, 1));
+    const bool ok = len > 0 && spread < theta;
+    for (std::uint32_t q = first; q < last; ++q) cell_of[q] = static_cast<std::uint32_t>(cell_first.size());
     cell_first.push_back(first);
-    mean.push_back(m);
-    limit.push_back(len > 0 && spread < theta ? static_cast<float>(std::cos(theta - spread)) : 2.0f);
+    cone.push_back({m, ok ? static_cast<float>(std::cos(theta - spread)) : 2.0f,
+                    static_cast<float>(std::cos(spread)), static_cast<float>(std::sin(spread)),
+                    static_cast<float>(std::cos(theta - spread)),
+                    static_cast<float>(std::sin(theta - spread))});
   });
   const std::size_t cells = cell_first.size();
+  // Float slack of the cell-level shortcuts below: they skip only where the point test would
+  // pass by more than the roundings, so the result is the point test's.
+  constexpr float kSlack = 1e-4f;
+  // Two cones whose axes are at most theta - spread_c - spread_d apart hold no pair of normals
+  // more than theta apart: cos of the axes' angle at least cos(theta - s_c - s_d), expanded.
+  auto cones_agree = [&](std::size_t c, std::size_t d) {
+    const Cone &cc = cone[c], &cd = cone[d];
+    if (cc.limit > 1 || cd.limit > 1 || cc.sin_rest * cd.cos_s - cc.cos_rest * cd.sin_s <= 0)
+      return false;  // theta - s_c - s_d <= 0 (its sine is the expression)
+    return cc.mean.dot(cd.mean) >= cc.cos_rest * cd.cos_s + cc.sin_rest * cd.sin_s + kSlack;
+  };
+  std::size_t c = 0;  // the cell for_each_cell visits: same order as above
   grid_.for_each_cell([&](std::int64_t cx, std::int64_t cy, std::int64_t cz, std::uint32_t first,
                           std::uint32_t last) {
     grid_.for_each_block_range(cx, cy, cz, 1, [&](std::uint32_t f, std::uint32_t l) {
-      auto d = static_cast<std::size_t>(std::lower_bound(cell_first.begin(), cell_first.end(), f) -
-                                        cell_first.begin());
-      for (; d < cells && cell_first[d] < l; ++d)
+      for (std::size_t d = cell_of[f]; d < cells && cell_first[d] < l; ++d) {
+        if (cones_agree(c, d)) continue;
         for (std::uint32_t s = first; s < last; ++s) {
           const std::uint32_t v = order[s];
-          if (!turning_[v] && nrm[v].dot(mean[d]) < limit[d]) turning_[v] = 1;
+          if (!turning_[v] && nrm[v].dot(cone[d].mean) < cone[d].limit) turning_[v] = 1;
         }
+      }
     });
+    ++c;
   });
   const auto cos_limit = static_cast<float>(cos_normal_);
   for (std::uint32_t v = 0; v < n; ++v) {
@@ -1686,10 +1708,15 @@ void Builder::mark_turning_points() {
     const Vec3& pv = p_[v];
     const Eigen::Vector3f nv = nrm[v];
     bool found = false;
+    // The ball's points cell by cell; a cell whose cone lies within theta of nv is skipped.
     grid_.for_each_range_within(pv, r, [&](std::uint32_t first, std::uint32_t last) {
-      for (std::uint32_t s = first; s < last && !found; ++s) {
-        const std::uint32_t u = order[s];
-        if (nrm[u].dot(nv) < cos_limit && (p_[u] - pv).squaredNorm() <= r2) found = true;
+      for (std::size_t d = cell_of[first]; d < cells && cell_first[d] < last && !found; ++d) {
+        if (cone[d].limit <= 1 && nv.dot(cone[d].mean) >= cone[d].limit + kSlack) continue;
+        const std::uint32_t end = std::min(last, d + 1 < cells ? cell_first[d + 1] : last);
+        for (std::uint32_t s = std::max(first, cell_first[d]); s < end && !found; ++s) {
+          const std::uint32_t u = order[s];
+          if (nrm[u].dot(nv) < cos_limit && (p_[u] - pv).squaredNorm() <= r2) found = true;
+        }
       }
     });
     turning_[v] = found ? 1 : 0;
