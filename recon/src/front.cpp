@@ -1650,10 +1650,12 @@ void Builder::mark_turning_points() {
   const std::vector<std::uint32_t>& order = grid_.order();
   const std::vector<Eigen::Vector3f>& nrm = f_.normal;
   // Per cell: its first slot, the cone (mean, spread), limit = cos(theta - spread) (2: no
-  // cone within theta), and for the cell-pair test cos and sin of spread and of theta - spread.
+  // cone within theta); for the shortcuts below, a spread made safe against the rounding of
+  // its float cosine (acos is ill-conditioned near 0), its cos and sin, those of theta minus it,
+  // and skip = cos(theta - safe spread).
   struct Cone {
     Eigen::Vector3f mean;
-    float limit, cos_s, sin_s, cos_rest, sin_rest;
+    float limit, cos_s, sin_s, cos_rest, sin_rest, skip;
   };
   std::vector<std::uint32_t> cell_first, cell_of(n);  // cell_of: per slot, its cell
   std::vector<Cone> cone;
@@ -1666,23 +1668,27 @@ void Builder::mark_turning_points() {
     float lowest = 1;
     for (std::uint32_t s = first; s < last; ++s) lowest = std::min(lowest, m.dot(nrm[order[s]]));
     const double spread = std::acos(std::clamp<double>(lowest, -1, 1));
+    const double safe = std::acos(std::clamp<double>(static_cast<double>(lowest) - 1e-6, -1, 1));
     const bool ok = len > 0 && spread < theta;
+    const bool safe_ok = len > 0 && safe < theta;
     for (std::uint32_t q = first; q < last; ++q) cell_of[q] = static_cast<std::uint32_t>(cell_first.size());
     cell_first.push_back(first);
     cone.push_back({m, ok ? static_cast<float>(std::cos(theta - spread)) : 2.0f,
-                    static_cast<float>(std::cos(spread)), static_cast<float>(std::sin(spread)),
-                    static_cast<float>(std::cos(theta - spread)),
-                    static_cast<float>(std::sin(theta - spread))});
+                    static_cast<float>(std::cos(safe)), static_cast<float>(std::sin(safe)),
+                    static_cast<float>(std::cos(theta - safe)),
+                    static_cast<float>(std::sin(theta - safe)),
+                    safe_ok ? static_cast<float>(std::cos(theta - safe)) : 2.0f});
   });
   const std::size_t cells = cell_first.size();
-  // Float slack of the cell-level shortcuts below: they skip only where the point test would
-  // pass by more than the roundings, so the result is the point test's.
+  // Float slack of the cell-level shortcuts below (with the safe spreads): they skip only
+  // where the point test would pass by more than the roundings, so the result is the point
+  // test's.
   constexpr float kSlack = 1e-4f;
   // Two cones whose axes are at most theta - spread_c - spread_d apart hold no pair of normals
   // more than theta apart: cos of the axes' angle at least cos(theta - s_c - s_d), expanded.
   auto cones_agree = [&](std::size_t c, std::size_t d) {
     const Cone &cc = cone[c], &cd = cone[d];
-    if (cc.limit > 1 || cd.limit > 1 || cc.sin_rest * cd.cos_s - cc.cos_rest * cd.sin_s <= 0)
+    if (cc.skip > 1 || cd.skip > 1 || cc.sin_rest * cd.cos_s - cc.cos_rest * cd.sin_s <= 0)
       return false;  // theta - s_c - s_d <= 0 (its sine is the expression)
     return cc.mean.dot(cd.mean) >= cc.cos_rest * cd.cos_s + cc.sin_rest * cd.sin_s + kSlack;
   };
@@ -1711,7 +1717,7 @@ void Builder::mark_turning_points() {
     // The ball's points cell by cell; a cell whose cone lies within theta of nv is skipped.
     grid_.for_each_range_within(pv, r, [&](std::uint32_t first, std::uint32_t last) {
       for (std::size_t d = cell_of[first]; d < cells && cell_first[d] < last && !found; ++d) {
-        if (cone[d].limit <= 1 && nv.dot(cone[d].mean) >= cone[d].limit + kSlack) continue;
+        if (cone[d].skip <= 1 && nv.dot(cone[d].mean) >= cone[d].skip + kSlack) continue;
         const std::uint32_t end = std::min(last, d + 1 < cells ? cell_first[d + 1] : last);
         for (std::uint32_t s = std::max(first, cell_first[d]); s < end && !found; ++s) {
           const std::uint32_t u = order[s];
@@ -1721,6 +1727,32 @@ void Builder::mark_turning_points() {
     });
     turning_[v] = found ? 1 : 0;
   }
+#ifndef NDEBUG
+  if (check_every_step_) {
+    // The cell shortcuts change nothing: the plain passes (every point against every
+    // neighbouring cell's cone, then against every point of its ball) give the same flags.
+    std::vector<std::uint8_t> plain(n, 0);
+    grid_.for_each_cell([&](std::int64_t cx, std::int64_t cy, std::int64_t cz, std::uint32_t first,
+                            std::uint32_t last) {
+      grid_.for_each_block_range(cx, cy, cz, 1, [&](std::uint32_t f, std::uint32_t l) {
+        for (std::size_t d = cell_of[f]; d < cells && cell_first[d] < l; ++d)
+          for (std::uint32_t q = first; q < last; ++q)
+            if (nrm[order[q]].dot(cone[d].mean) < cone[d].limit) plain[order[q]] = 1;
+      });
+    });
+    for (std::uint32_t v = 0; v < n; ++v) {
+      if (!plain[v]) continue;
+      const double r = opt_.radius_factor * 1.5 * spacing(v);
+      bool found = false;
+      grid_.for_each_range_within(p_[v], r, [&](std::uint32_t first, std::uint32_t last) {
+        for (std::uint32_t q = first; q < last; ++q)
+          found = found || (nrm[order[q]].dot(nrm[v]) < cos_limit && (p_[order[q]] - p_[v]).squaredNorm() <= r * r);
+      });
+      plain[v] = found ? 1 : 0;
+    }
+    assert(plain == turning_ && "the turning points' cell shortcuts changed a flag");
+  }
+#endif
   // Points within reach of a turning point (2): a triangle there can cross one that a turning
   // point holds (a bevel across a sharp rim whose other face is unsampled: the cap beside it
   // has no turning point of its own, but the bevel's wall corner is one). Their triangles get
