@@ -309,7 +309,7 @@ void Delaunay2::triangulate(std::span<const std::array<double, 2>> points) {
     out_[perm_[v]] = hull_edge_[v];
     v = hull_next_[v];
   } while (v != hull_start);
-  p_ = points;
+  p_ = points;  // in the corners' numbering again
 }
 
 }  // namespace scanmesh::recon::detail

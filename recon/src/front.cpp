@@ -1651,11 +1651,11 @@ void Builder::mark_turning_points() {
   const std::vector<Eigen::Vector3f>& nrm = f_.normal;
   // Per cell: its first slot, the cone (mean, spread), limit = cos(theta - spread) (2: no
   // cone within theta); for the shortcuts below, a spread made safe against the rounding of
-  // its float cosine (acos is ill-conditioned near 0), its cos and sin, those of theta minus it,
-  // and skip = cos(theta - safe spread).
+  // its float cosine (acos is ill-conditioned near 0): its cos and sin, and those of theta
+  // minus it (cos_rest 2: that cone is not within theta).
   struct Cone {
     Eigen::Vector3f mean;
-    float limit, cos_s, sin_s, cos_rest, sin_rest, skip;
+    float limit, cos_s, sin_s, cos_rest, sin_rest;
   };
   std::vector<std::uint32_t> cell_first, cell_of(n);  // cell_of: per slot, its cell
   std::vector<Cone> cone;
@@ -1675,9 +1675,8 @@ void Builder::mark_turning_points() {
     cell_first.push_back(first);
     cone.push_back({m, ok ? static_cast<float>(std::cos(theta - spread)) : 2.0f,
                     static_cast<float>(std::cos(safe)), static_cast<float>(std::sin(safe)),
-                    static_cast<float>(std::cos(theta - safe)),
-                    static_cast<float>(std::sin(theta - safe)),
-                    safe_ok ? static_cast<float>(std::cos(theta - safe)) : 2.0f});
+                    safe_ok ? static_cast<float>(std::cos(theta - safe)) : 2.0f,
+                    static_cast<float>(std::sin(theta - safe))});
   });
   const std::size_t cells = cell_first.size();
   // Float slack of the cell-level shortcuts below (with the safe spreads): they skip only
@@ -1688,7 +1687,7 @@ void Builder::mark_turning_points() {
   // more than theta apart: cos of the axes' angle at least cos(theta - s_c - s_d), expanded.
   auto cones_agree = [&](std::size_t c, std::size_t d) {
     const Cone &cc = cone[c], &cd = cone[d];
-    if (cc.skip > 1 || cd.skip > 1 || cc.sin_rest * cd.cos_s - cc.cos_rest * cd.sin_s <= 0)
+    if (cc.cos_rest > 1 || cd.cos_rest > 1 || cc.sin_rest * cd.cos_s - cc.cos_rest * cd.sin_s <= 0)
       return false;  // theta - s_c - s_d <= 0 (its sine is the expression)
     return cc.mean.dot(cd.mean) >= cc.cos_rest * cd.cos_s + cc.sin_rest * cd.sin_s + kSlack;
   };
@@ -1717,7 +1716,7 @@ void Builder::mark_turning_points() {
     // The ball's points cell by cell; a cell whose cone lies within theta of nv is skipped.
     grid_.for_each_range_within(pv, r, [&](std::uint32_t first, std::uint32_t last) {
       for (std::size_t d = cell_of[first]; d < cells && cell_first[d] < last && !found; ++d) {
-        if (cone[d].skip <= 1 && nv.dot(cone[d].mean) >= cone[d].skip + kSlack) continue;
+        if (cone[d].cos_rest <= 1 && nv.dot(cone[d].mean) >= cone[d].cos_rest + kSlack) continue;
         const std::uint32_t end = std::min(last, d + 1 < cells ? cell_first[d + 1] : last);
         for (std::uint32_t s = std::max(first, cell_first[d]); s < end && !found; ++s) {
           const std::uint32_t u = order[s];
