@@ -1691,9 +1691,9 @@ void Builder::mark_turning_points() {
       return false;  // theta - s_c - s_d <= 0 (its sine is the expression)
     return cc.mean.dot(cd.mean) >= cc.cos_rest * cd.cos_s + cc.sin_rest * cd.sin_s + kSlack;
   };
-  std::size_t c = 0;  // the cell for_each_cell visits: same order as above
   grid_.for_each_cell([&](std::int64_t cx, std::int64_t cy, std::int64_t cz, std::uint32_t first,
                           std::uint32_t last) {
+    const std::size_t c = cell_of[first];
     grid_.for_each_block_range(cx, cy, cz, 1, [&](std::uint32_t f, std::uint32_t l) {
       for (std::size_t d = cell_of[f]; d < cells && cell_first[d] < l; ++d) {
         if (cones_agree(c, d)) continue;
@@ -1703,7 +1703,6 @@ void Builder::mark_turning_points() {
         }
       }
     });
-    ++c;
   });
   const auto cos_limit = static_cast<float>(cos_normal_);
   for (std::uint32_t v = 0; v < n; ++v) {
