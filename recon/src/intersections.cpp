@@ -9,6 +9,8 @@
 #include "triangle_components.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <utility>
 #include <cmath>
 #include <limits>
 
@@ -282,61 +284,109 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
     const double c = std::floor((v - origin[axis]) / cell);
     return static_cast<std::uint32_t>(c >= 0 && c <= kTop ? c : (c > kTop ? kTop : 0.0));
   };
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> entries;  // (cell key, triangle)
-  std::vector<std::uint32_t> big;                                // triangles over kMaxCells cells
+  std::vector<std::uint32_t> big;                       // triangles over kMaxCells cells
   std::vector<std::array<std::uint32_t, 6>> range(nt);  // cell ranges: lo xyz, hi xyz
-  // With `from`, the cells of the new triangles first: an older triangle is entered only in
-  // those (nothing else can meet a new one).
+  std::uint32_t top[3] = {0, 0, 0};                     // the largest cell coordinate per axis
+  for (const std::uint32_t i : valid) {
+    auto& r = range[i];
+    for (int k = 0; k < 3; ++k) {
+      r[k] = coord(box[i].lo[k], k);
+      r[3 + k] = coord(box[i].hi[k], k);
+    }
+    const std::uint64_t cells = std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1);
+    if (cells > kMaxCells) {
+      big.push_back(i);
+      continue;
+    }
+    for (int k = 0; k < 3; ++k) top[k] = std::max(top[k], r[3 + k]);
+  }
+  // Cells numbered densely over the occupied box, (z, y, x) ascending, and an entry packed as
+  // cell << tri_bits | triangle: sorted as integers they come by cell, then by triangle.
+  const std::uint64_t nx = std::uint64_t{top[0]} + 1, ny = std::uint64_t{top[1]} + 1,
+                      nz = std::uint64_t{top[2]} + 1;
+  const int cell_bits = std::bit_width(nx * ny * nz - 1);  // at most 63: 21 bits an axis
+  const int tri_bits = std::max(1, static_cast<int>(std::bit_width(nt - 1)));
+  const bool packed = cell_bits + tri_bits <= 64;
+  auto cell_of = [&](std::uint64_t x, std::uint64_t y, std::uint64_t z) { return (z * ny + y) * nx + x; };
+  // With `from`, an older triangle is entered only in the cells of the new ones (nothing else
+  // can meet a new one).
   std::vector<std::uint64_t> wanted;
-  for (const bool is_new : {true, false}) {
-    if (!is_new && from == 0) break;
-    for (std::uint32_t i : valid) {
-      if (from > 0 && (i >= from) != is_new) continue;
-      auto& r = range[i];
-      for (int k = 0; k < 3; ++k) {
-        r[k] = coord(box[i].lo[k], k);
-        r[3 + k] = coord(box[i].hi[k], k);
-      }
-      const std::uint64_t cells = std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1);
-      if (cells > kMaxCells) {
-        big.push_back(i);
-        continue;
-      }
+  if (from > 0) {
+    for (const std::uint32_t i : valid) {
+      if (i < from) continue;
+      const auto& r = range[i];
+      if (std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1) > kMaxCells) continue;
       for (std::uint64_t z = r[2]; z <= r[5]; ++z)
         for (std::uint64_t y = r[1]; y <= r[4]; ++y)
-          for (std::uint64_t x = r[0]; x <= r[3]; ++x) {
-            const std::uint64_t key = (z << 42) | (y << 21) | x;
-            if (from > 0 && !is_new && !std::binary_search(wanted.begin(), wanted.end(), key))
-              continue;
-            entries.emplace_back(key, i);
-          }
+          for (std::uint64_t x = r[0]; x <= r[3]; ++x) wanted.push_back(cell_of(x, y, z));
     }
-    if (from > 0 && is_new) {
-      for (const auto& [key, i] : entries) wanted.push_back(key);
-      std::sort(wanted.begin(), wanted.end());
-      wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
-    }
+    std::sort(wanted.begin(), wanted.end());
+    wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
   }
-  std::sort(entries.begin(), entries.end());
+  // (cell, triangle) entries: packed into one integer and radix sorted when they fit (the usual
+  // case: a comparison sort of the pairs was a third of the check), else pairs sorted.
+  std::vector<std::uint64_t> keys;                              // packed
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> pairs;  // otherwise
+  for (const std::uint32_t i : valid) {
+    const auto& r = range[i];
+    if (std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1) > kMaxCells) continue;
+    const bool is_new = i >= from;
+    for (std::uint64_t z = r[2]; z <= r[5]; ++z)
+      for (std::uint64_t y = r[1]; y <= r[4]; ++y)
+        for (std::uint64_t x = r[0]; x <= r[3]; ++x) {
+          const std::uint64_t c = cell_of(x, y, z);
+          if (!is_new && !std::binary_search(wanted.begin(), wanted.end(), c)) continue;
+          if (packed)
+            keys.push_back((c << tri_bits) | i);
+          else
+            pairs.emplace_back(c, i);
+        }
+  }
+  if (packed) {
+    // LSD radix sort on the used bits, digits of at most 11 bits.
+    const int bits = cell_bits + tri_bits;
+    const int passes = (bits + 10) / 11, digit = (bits + passes - 1) / passes;
+    std::vector<std::uint64_t> tmp(keys.size());
+    std::vector<std::uint32_t> count(std::size_t{1} << digit);
+    const std::uint64_t mask = (std::uint64_t{1} << digit) - 1;
+    for (int pass = 0; pass < passes; ++pass) {
+      const int shift = pass * digit;
+      std::fill(count.begin(), count.end(), 0u);
+      for (const std::uint64_t k : keys) ++count[(k >> shift) & mask];
+      std::uint32_t sum = 0;
+      for (std::uint32_t& c : count) sum += std::exchange(c, sum);
+      for (const std::uint64_t k : keys) tmp[count[(k >> shift) & mask]++] = k;
+      keys.swap(tmp);
+    }
+    std::vector<std::uint64_t>().swap(tmp);
+  } else {
+    std::sort(pairs.begin(), pairs.end());
+  }
+  const std::uint64_t tri_mask = (std::uint64_t{1} << (packed ? tri_bits : 0)) - 1;
+  const std::size_t n_entries = packed ? keys.size() : pairs.size();
+  auto cell_at = [&](std::size_t q) { return packed ? keys[q] >> tri_bits : pairs[q].first; };
+  auto tri_at = [&](std::size_t q) {
+    return packed ? static_cast<std::uint32_t>(keys[q] & tri_mask) : pairs[q].second;
+  };
   std::vector<std::uint8_t> involved(nt, 0);
   auto record = [&](std::uint32_t a, std::uint32_t b) {
     ++out.pairs;
     involved[a] = involved[b] = 1;
     if (out.examples.size() < max_examples) out.examples.push_back({std::min(a, b), std::max(a, b)});
   };
-  for (std::size_t g = 0; g < entries.size();) {
+  for (std::size_t g = 0; g < n_entries;) {
+    const std::uint64_t key = cell_at(g);
     std::size_t e = g;
-    while (e < entries.size() && entries[e].first == entries[g].first) ++e;
-    if (entries[e - 1].second < from) {  // ids ascend within a cell: none is new
+    while (e < n_entries && cell_at(e) == key) ++e;
+    if (tri_at(e - 1) < from) {  // ids ascend within a cell: none is new
       g = e;
       continue;
     }
-    const std::uint64_t key = entries[g].first;
-    const std::uint64_t cx = key & 0x1fffff, cy = (key >> 21) & 0x1fffff, cz = key >> 42;
+    const std::uint64_t cx = key % nx, cy = key / nx % ny, cz = key / nx / ny;
     for (std::size_t i = g; i < e; ++i) {
-      const std::uint32_t a = entries[i].second;
+      const std::uint32_t a = tri_at(i);
       for (std::size_t j = i + 1; j < e; ++j) {
-        const std::uint32_t b = entries[j].second;
+        const std::uint32_t b = tri_at(j);
         if (b < from || !box[a].overlaps(box[b])) continue;
         // Test the pair once: in the cell holding the low corner of the boxes' overlap.
         if (std::max(range[a][0], range[b][0]) != cx || std::max(range[a][1], range[b][1]) != cy ||

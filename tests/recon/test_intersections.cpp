@@ -183,6 +183,39 @@ TEST_CASE("find_self_intersections: a closed mesh has none; a sheet pushed throu
   CHECK(find_self_intersections(sphere, 0, sphere_triangles).pairs == r.pairs);
 }
 
+// The grid numbers its cells densely over the occupied box and sorts (cell, triangle) keys packed
+// into one integer; tiny triangles at the far corners of a huge box need over 60 bits for the
+// cell alone, so with enough triangles the keys no longer fit and the pairs are sorted instead.
+// Both paths find the same crossings, with and without `from`.
+TEST_CASE("find_self_intersections: a sparse box too large for packed keys", "[recon][intersections]") {
+  // Two tiny triangles crossing each other at `at`: the first of each pair is listed in the
+  // first half of the triangles, the second in the second half, so only sorting by cell brings
+  // a pair together.
+  auto crossing_x = [](Mesh& m, std::vector<Triangle>& second, const Vec3& at) {
+    const auto b = static_cast<std::uint32_t>(m.vertices.size());
+    m.vertices.insert(m.vertices.end(), {at + Vec3(-1, -1, 0), at + Vec3(1, -1, 0), at + Vec3(0, 1, 0),
+                                         at + Vec3(0, 0, -1), at + Vec3(0, 0, 1), at + Vec3(0, 2, 0)});
+    m.triangles.push_back({b, b + 1, b + 2});
+    second.push_back({b + 3, b + 4, b + 5});
+  };
+  for (const std::uint32_t far_pairs : {1u, 40u}) {  // 4 and 82 triangles: 2 and 7 bits of id
+    INFO(far_pairs << " crossing pairs at the far corner");
+    Mesh m;
+    std::vector<Triangle> second;
+    crossing_x(m, second, Vec3(0, 0, 0));
+    for (std::uint32_t k = 0; k < far_pairs; ++k)
+      crossing_x(m, second, Vec3(1e9, 1e9 - 10.0 * k, 1e9 + 10.0 * k));
+    const std::size_t n = m.triangles.size();
+    m.triangles.insert(m.triangles.end(), second.begin(), second.end());
+    const auto all = find_self_intersections(m, scanmesh::recon::kAllPairs);
+    CHECK(all.pairs == n);
+    CHECK(all.triangles == 2 * n);
+    for (const auto& [a, b] : all.examples) CHECK(b == a + n);  // each tiny pair, nothing else
+    // Only the last triangle is new: its pair alone.
+    CHECK(find_self_intersections(m, 0, m.triangles.size() - 1).pairs == 1);
+  }
+}
+
 // Two sheets over one surface (a small component grown among points a larger one left under its
 // triangles) are not one surface: the smaller of a crossing pair goes, the rest stays in order.
 TEST_CASE("remove_crossing_components drops the smaller of two crossing components",
