@@ -286,15 +286,18 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
   };
   std::vector<std::uint32_t> big;                       // triangles over kMaxCells cells
   std::vector<std::array<std::uint32_t, 6>> range(nt);  // cell ranges: lo xyz, hi xyz
-  std::uint32_t top[3] = {0, 0, 0};                     // the largest cell coordinate per axis
+  auto is_big = [&](std::uint32_t i) {
+    const auto& r = range[i];
+    return std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1) > kMaxCells;
+  };
+  std::uint32_t top[3] = {0, 0, 0};  // the largest cell coordinate per axis
   for (const std::uint32_t i : valid) {
     auto& r = range[i];
     for (int k = 0; k < 3; ++k) {
       r[k] = coord(box[i].lo[k], k);
       r[3 + k] = coord(box[i].hi[k], k);
     }
-    const std::uint64_t cells = std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1);
-    if (cells > kMaxCells) {
+    if (is_big(i)) {
       big.push_back(i);
       continue;
     }
@@ -307,19 +310,18 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
   const int cell_bits = std::bit_width(nx * ny * nz - 1);  // at most 63: 21 bits an axis
   const int tri_bits = std::max(1, static_cast<int>(std::bit_width(nt - 1)));
   const bool packed = cell_bits + tri_bits <= 64;
-  auto cell_of = [&](std::uint64_t x, std::uint64_t y, std::uint64_t z) { return (z * ny + y) * nx + x; };
+  auto for_each_cell = [&](std::uint32_t i, auto&& f) {  // the cells of a triangle that is not big
+    const auto& r = range[i];
+    for (std::uint64_t z = r[2]; z <= r[5]; ++z)
+      for (std::uint64_t y = r[1]; y <= r[4]; ++y)
+        for (std::uint64_t x = r[0]; x <= r[3]; ++x) f((z * ny + y) * nx + x);
+  };
   // With `from`, an older triangle is entered only in the cells of the new ones (nothing else
   // can meet a new one).
   std::vector<std::uint64_t> wanted;
   if (from > 0) {
-    for (const std::uint32_t i : valid) {
-      if (i < from) continue;
-      const auto& r = range[i];
-      if (std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1) > kMaxCells) continue;
-      for (std::uint64_t z = r[2]; z <= r[5]; ++z)
-        for (std::uint64_t y = r[1]; y <= r[4]; ++y)
-          for (std::uint64_t x = r[0]; x <= r[3]; ++x) wanted.push_back(cell_of(x, y, z));
-    }
+    for (const std::uint32_t i : valid)
+      if (i >= from && !is_big(i)) for_each_cell(i, [&](std::uint64_t c) { wanted.push_back(c); });
     std::sort(wanted.begin(), wanted.end());
     wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
   }
@@ -328,19 +330,15 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
   std::vector<std::uint64_t> keys;                              // packed
   std::vector<std::pair<std::uint64_t, std::uint32_t>> pairs;  // otherwise
   for (const std::uint32_t i : valid) {
-    const auto& r = range[i];
-    if (std::uint64_t{r[3] - r[0] + 1} * (r[4] - r[1] + 1) * (r[5] - r[2] + 1) > kMaxCells) continue;
+    if (is_big(i)) continue;
     const bool is_new = i >= from;
-    for (std::uint64_t z = r[2]; z <= r[5]; ++z)
-      for (std::uint64_t y = r[1]; y <= r[4]; ++y)
-        for (std::uint64_t x = r[0]; x <= r[3]; ++x) {
-          const std::uint64_t c = cell_of(x, y, z);
-          if (!is_new && !std::binary_search(wanted.begin(), wanted.end(), c)) continue;
-          if (packed)
-            keys.push_back((c << tri_bits) | i);
-          else
-            pairs.emplace_back(c, i);
-        }
+    for_each_cell(i, [&](std::uint64_t c) {
+      if (!is_new && !std::binary_search(wanted.begin(), wanted.end(), c)) return;
+      if (packed)
+        keys.push_back((c << tri_bits) | i);
+      else
+        pairs.emplace_back(c, i);
+    });
   }
   if (packed) {
     // LSD radix sort on the used bits, digits of at most 11 bits.
@@ -362,7 +360,7 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
   } else {
     std::sort(pairs.begin(), pairs.end());
   }
-  const std::uint64_t tri_mask = (std::uint64_t{1} << (packed ? tri_bits : 0)) - 1;
+  const std::uint64_t tri_mask = (std::uint64_t{1} << tri_bits) - 1;  // tri_bits <= 32
   const std::size_t n_entries = packed ? keys.size() : pairs.size();
   auto cell_at = [&](std::size_t q) { return packed ? keys[q] >> tri_bits : pairs[q].first; };
   auto tri_at = [&](std::size_t q) {
