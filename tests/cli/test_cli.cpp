@@ -726,6 +726,29 @@ TEST_CASE("simulated scans of every part in every scanning mode mesh validly", "
   }
 }
 
+// The steps from four table angles, seed 7: along the lowest step's back top edge the wall's top
+// row of points lies 1.4 mm below the edge, and the front cut the corner with a bevel from it to
+// the top face, under the edge row's points. It then meshed those points as a flap over the
+// bevel, and the triangle joining the flap to the rest of its loop closed a tunnel between the
+// two layers: genus 1 (the part is genus 0). The front now refuses a triangle that would lie
+// less than 0.8 spacings over a triangle facing the same way.
+TEST_CASE("a four-view scan of the steps has no false handle over a bevelled edge", "[cli][sim]") {
+  TempDir dir;
+  auto r = run(dir, {"simulate", "--part", "steps", "--sensor", "line", "--path", "views",
+                     "--views", "4", "--spacing", "0.8", "--profile-points", "60", "--noise",
+                     "0.02", "--dropout", "0.05", "--seed", "7", "-o",
+                     (dir / "cloud.xyz").string()});
+  REQUIRE(r.status == 0);
+  r = run(dir, {"reconstruct", (dir / "cloud.xyz").string(), "-o", (dir / "mesh.ply").string(),
+                "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  check_manifold_oriented(j);
+  CHECK(j.at("genus") == 0);
+  CHECK(j.at("vertices").get<double>() >= 0.99 * j.at("reduced_points").get<double>());
+}
+
 TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only on request",
           "[cli]") {
   TempDir dir;
