@@ -47,7 +47,9 @@ struct FrontOptions {
   /// The new triangle must not cross or overlap the mesh (rule 3 of the front): each one is
   /// tested exactly against the triangles around its corners, and near turning points (the
   /// surface turns back within reach: thin walls, sharp edges) or where the front-edge tests
-  /// cannot see the front near it, against every triangle near it. Off only for comparison.
+  /// cannot see the front near it, against every triangle near it; and a free point a new
+  /// triangle covers away from turning points is no candidate afterwards (it would make a
+  /// triangle overlapping that one). Off only for comparison.
   bool crossing_guard = true;
   /// Start from the bulk: the flat, well-sampled interior (away from turning points, normals
   /// within a 60-degree cone per patch) is triangulated by planar Delaunay patches that meet
