@@ -914,9 +914,13 @@ void Builder::cover_free_points(std::uint32_t a, std::uint32_t b, std::uint32_t 
   if (!opt_.crossing_guard || turning(Triangle{b, a, p})) return;
   const Vec3 &pa = p_[a], &pb = p_[b], &pp = p_[p];
   const double band = 0.5 * spacing;
+  // A point inside the triangle is within its corners' farthest distance from the centroid.
+  const Vec3 g = (pa + pb + pp) / 3.0;
+  const double r2 = std::max({(pa - g).squaredNorm(), (pb - g).squaredNorm(), (pp - g).squaredNorm()}) +
+                    band * band;
   for (const std::uint32_t q : near_free_) {
-    if (q == p) continue;
     const Vec3& pq = p_[q];
+    if ((pq - g).squaredNorm() > r2 || q == p) continue;
     if (std::abs((pq - pb).dot(n)) > band) continue;
     if ((pa - pb).cross(pq - pb).dot(n) > 0 && (pp - pa).cross(pq - pa).dot(n) > 0 &&
         (pb - pp).cross(pq - pp).dot(n) > 0)
