@@ -557,6 +557,23 @@ class Builder {
   /// normal n covers (see the definition).
   void cover_free_points(std::uint32_t a, std::uint32_t b, std::uint32_t p, const Vec3& n,
                          double spacing);
+  /// Calls f(triangle id) for every listed triangle of the vertices within `reach` of c (a
+  /// triangle once per listed corner there), until f returns true; returns whether it did.
+  template <class F>
+  bool any_listed_triangle_near(const Vec3& c, double reach, F&& f) const {
+    const std::uint32_t* order = grid_.order().data();
+    const double reach2 = reach * reach;
+    bool stop = false;
+    grid_.for_each_range_within(c, reach, [&](std::uint32_t first, std::uint32_t last) {
+      for (std::uint32_t s = first; s < last && !stop; ++s) {
+        const std::uint32_t v = order[s];
+        if (corner_head_[v] == kNone || (p_[v] - c).squaredNorm() > reach2) continue;
+        for (std::uint32_t n = corner_head_[v]; n != kNone && !stop; n = corners_[n].next)
+          stop = f(corners_[n].tri);
+      }
+    });
+    return stop;
+  }
   std::vector<std::uint8_t> turning_;
   std::vector<std::uint32_t> corner_head_;  // per vertex: first node of its list, or kNone
   struct CornerNode {
@@ -934,35 +951,25 @@ bool Builder::stacked(std::uint32_t a, std::uint32_t b, std::uint32_t p, const V
   if (corner_head_.empty()) return false;
   const Vec3 g = (p_[a] + p_[b] + p_[p]) / 3.0;
   const double sp = std::max({spacing(a), spacing(b), spacing(p)});
-  const double reach = 1.5 * sp, reach2 = reach * reach;
   const double low = 0.05 * sp, high = kStackedSpacings * sp;
-  const std::uint32_t* order = grid_.order().data();
-  bool found = false;
-  grid_.for_each_range_within(g, reach, [&](std::uint32_t first, std::uint32_t last) {
-    for (std::uint32_t slot = first; slot < last && !found; ++slot) {
-      const std::uint32_t v = order[slot];
-      if (corner_head_[v] == kNone || (p_[v] - g).squaredNorm() > reach2) continue;
-      for (std::uint32_t c = corner_head_[v]; c != kNone && !found; c = corners_[c].next) {
-        const Triangle& t = tris_[corners_[c].tri];
-        const int shared = (t[0] == a || t[0] == b || t[0] == p) + (t[1] == a || t[1] == b || t[1] == p) +
-                           (t[2] == a || t[2] == b || t[2] == p);
-        if (shared >= 2) continue;  // a neighbour across an edge: the fold rules decide
-        const Vec3& o = p_[t[0]];
-        Vec3 nt = (p_[t[1]] - o).cross(p_[t[2]] - o);
-        const double len = nt.norm();
-        if (!(len > 0)) continue;
-        nt /= len;
-        if (nt.dot(n) <= kStackedCos) continue;  // the other side of a wall, or across an edge
-        const double h = (g - o).dot(nt);
-        if (!(h > low && h < high)) continue;
-        const Vec3 q = g - h * nt;  // the centroid dropped onto t's plane: inside t?
-        found = true;
-        for (int k = 0; k < 3 && found; ++k)
-          found = (p_[t[(k + 1) % 3]] - p_[t[k]]).cross(q - p_[t[k]]).dot(nt) >= 0;
-      }
-    }
+  return any_listed_triangle_near(g, 1.5 * sp, [&](std::uint32_t id) {
+    const Triangle& t = tris_[id];
+    const int shared = (t[0] == a || t[0] == b || t[0] == p) + (t[1] == a || t[1] == b || t[1] == p) +
+                       (t[2] == a || t[2] == b || t[2] == p);
+    if (shared >= 2) return false;  // a neighbour across an edge: the fold rules decide
+    const Vec3& o = p_[t[0]];
+    Vec3 nt = (p_[t[1]] - o).cross(p_[t[2]] - o);
+    const double len = nt.norm();
+    if (!(len > 0)) return false;
+    nt /= len;
+    if (nt.dot(n) <= kStackedCos) return false;  // the other side of a wall, or across an edge
+    const double h = (g - o).dot(nt);
+    if (!(h > low && h < high)) return false;
+    const Vec3 q = g - h * nt;  // the centroid dropped onto t's plane: inside t?
+    for (int k = 0; k < 3; ++k)
+      if ((p_[t[(k + 1) % 3]] - p_[t[k]]).cross(q - p_[t[k]]).dot(nt) < 0) return false;
+    return true;
   });
-  return found;
 }
 
 bool Builder::process(std::uint32_t eid, const Mode& mode) {
@@ -1971,21 +1978,14 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
   const Vec3 &q0 = p_[t[0]], &q1 = p_[t[1]], &q2 = p_[t[2]];
   const detail::TriangleBounds tb(q0, q1, q2);
   near_tris_.clear();
-  const std::uint32_t* order = grid_.order().data();
   // Every point of a triangle lies within 0.58 of its longest edge of its nearest corner, and
   // edges are at most about `radius` long: a triangle that meets t has a corner within `near`
   // of t's centre. Only those corners' lists are walked (the cells hold about five times as
   // many points as the ball).
-  const double near = tb.reach + 0.6 * radius, near2 = near * near;
-  grid_.for_each_range_within(tb.centre, near, [&](std::uint32_t first, std::uint32_t last) {
-    for (std::uint32_t s = first; s < last; ++s) {
-      const std::uint32_t v = order[s];
-      if (corner_head_[v] == kNone || (p_[v] - tb.centre).squaredNorm() > near2) continue;
-      for (std::uint32_t c = corner_head_[v]; c != kNone; c = corners_[c].next) {
-        const Triangle& q = tris_[corners_[c].tri];
-        if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(corners_[c].tri);
-      }
-    }
+  any_listed_triangle_near(tb.centre, tb.reach + 0.6 * radius, [&](std::uint32_t id) {
+    const Triangle& q = tris_[id];
+    if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(id);
+    return false;
   });
   std::sort(near_tris_.begin(), near_tris_.end());
   near_tris_.erase(std::unique(near_tris_.begin(), near_tris_.end()), near_tris_.end());
