@@ -593,6 +593,11 @@ class Builder {
   /// right-angled edge sits about 0.7 of the bevel's legs above it; 0.5 caught none of the
   /// two measured cases, 0.8 both, with six of the seven real scans byte-identical.
   static constexpr double kStackedSpacings = 0.8;
+  /// ... and above a bevel across a sharp edge (kCosBevel), up to 1.2 spacings: the flap over
+  /// a bevel whose legs are up to about 1.7 spacings long (a six-view line scan of the
+  /// cylinder, seed 14: 0.89 spacings above a bevel whose corners' normals are 55 degrees off).
+  static constexpr double kStackedBevelSpacings = 1.2;
+  static constexpr float kCosBevel = 0.70710678f;  // cos 45 degrees
   static constexpr double kStackedCos = 0.3;
   /// Edges whose front angle at either end is below 120 degrees are processed first.
   const double ear_turn_ = turn_of_degrees(120);
@@ -964,7 +969,16 @@ bool Builder::stacked(std::uint32_t a, std::uint32_t b, std::uint32_t p, const V
     nt /= len;
     if (nt.dot(n) <= kStackedCos) return false;  // the other side of a wall, or across an edge
     const double h = (g - o).dot(nt);
-    if (!(h > low && h < high)) return false;
+    if (!(h > low)) return false;
+    if (!(h < high)) {
+      // Higher above a bevel across a sharp edge: a corner's normal more than 45 degrees off
+      // the triangle's (a right-angled edge cut evenly puts both faces 45 degrees off).
+      if (!(h < kStackedBevelSpacings * sp)) return false;
+      const Eigen::Vector3f ntf = nt.cast<float>();
+      if (std::min({f_.normal[t[0]].dot(ntf), f_.normal[t[1]].dot(ntf),
+                    f_.normal[t[2]].dot(ntf)}) >= kCosBevel)
+        return false;
+    }
     const Vec3 q = g - h * nt;  // the centroid dropped onto t's plane: inside t?
     for (int k = 0; k < 3; ++k)
       if ((p_[t[(k + 1) % 3]] - p_[t[k]]).cross(q - p_[t[k]]).dot(nt) < 0) return false;

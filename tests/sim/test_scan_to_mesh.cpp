@@ -1,0 +1,69 @@
+// Simulated scans meshed in process, with every digit of the simulated points: some of the
+// front's failures depend on the last bits of the input, and `scanmesh simulate` writes 9
+// significant digits (enough for a sensor), so a CLI round trip can miss them. bench_quality
+// (--save) finds such scans; the ones traced to a cause are pinned here.
+// SPDX-License-Identifier: MIT
+#include <catch2/catch.hpp>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/intersections.hpp"
+#include "scanmesh/recon/reconstruct.hpp"
+#include "scanmesh/sim/parts.hpp"
+#include "scanmesh/sim/simulator.hpp"
+#include "scanmesh/sim/stream.hpp"
+
+namespace {
+
+using namespace scanmesh;
+using recon::Vec3;
+
+/// A line profiler scanning `part` from `views` table angles, with bench_quality's noise
+/// (0.02 mm) and dropouts (5 %), at 20 mm/s.
+std::vector<Vec3> line_views_scan(const std::string& part, std::uint32_t views, double spacing_mm,
+                                  std::uint32_t profile_points, std::uint64_t seed) {
+  const sim::Scene scene{sim::make_part(part)};
+  sim::SimConfig cfg;
+  cfg.sensor = sim::default_sensor(sim::SensorKind::kLine);
+  cfg.sensor.profile_points = profile_points;
+  cfg.sensor.rate_hz = 20.0 / spacing_mm;
+  cfg.path.kind = sim::path_kind_from_string("views");
+  cfg.path.spacing_mm = spacing_mm;
+  cfg.path.views = views;
+  cfg.imperfections.seed = seed;
+  cfg.imperfections.range_noise_mm = 0.02;
+  cfg.imperfections.dropout_probability = 0.05;
+  const sim::Simulator simulator(scene, cfg);
+  sim::ScanRecorder rec;
+  simulator.run(rec, &rec);
+  const sim::SimulatedScan& s = rec.scan();
+  std::vector<Vec3> points;
+  for (const auto& p : sim::points_from_samples(simulator.optics(), simulator.calibration(),
+                                                s.stage, s.sensor, s.probe))
+    points.push_back(p.point_mm);
+  return points;
+}
+
+}  // namespace
+
+// Along the cylinder's top rim the front cut the right-angled edge with a bevel (its corners'
+// normals 55 degrees off its own) and later meshed the rim's points flat above it, 0.89 local
+// spacings up: a flap, whose joining triangle closed a tunnel between the two layers (genus 1).
+// The stacking rule refused flaps only up to 0.8 spacings; over a bevel across a sharp edge it
+// now refuses them up to 1.2. (bench_quality, seeds 1-30: the only false handle in 600 scans.)
+TEST_CASE("a six-view line scan of the cylinder meshes without a flap over the rim's bevel",
+          "[sim][recon]") {
+  const std::vector<Vec3> points = line_views_scan("cylinder", 6, 0.4, 120, 14);
+  REQUIRE(points.size() > 60000);
+  const recon::ReconstructResult r = recon::reconstruct(points);
+  const recon::MeshReport rep = recon::analyze(r.mesh);
+  INFO(rep.boundary_loops << " loops, " << rep.components << " components");
+  CHECK(rep.non_manifold_edges == 0);
+  CHECK(rep.non_manifold_vertices == 0);
+  CHECK(rep.orientation_consistent);
+  CHECK(rep.genus == 0);
+  CHECK(recon::find_self_intersections(r.mesh).pairs == 0);
+  CHECK(r.mesh.vertices.size() >= 0.99 * static_cast<double>(r.reduced_points));
+}
