@@ -86,8 +86,9 @@ void save_points(const std::vector<Vec3>& points, const std::string& dir, const 
 
 void usage(const char* argv0) {
   std::printf(
-      "usage: %s [--seeds N] [--part NAME]... [--save DIR]\n"
+      "usage: %s [--seeds N] [--first S] [--part NAME]... [--save DIR]\n"
       "  --seeds N    seeds 1..N per part and mode (default 3)\n"
+      "  --first S    start at seed S instead of 1 (seeds S..N)\n"
       "  --part NAME  only this built-in part (repeatable; default: all)\n"
       "  --save DIR   write the points of every flagged scan to DIR/PART-MODE-SEED.xyz, every\n"
       "               digit kept (17), so `scanmesh reconstruct` meets exactly the same input\n",
@@ -97,7 +98,7 @@ void usage(const char* argv0) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int seeds = 3;
+  int seeds = 3, first = 1;
   std::vector<std::string> parts;
   std::string save_dir;
   for (int i = 1; i < argc; ++i) {
@@ -106,6 +107,8 @@ int main(int argc, char** argv) {
       seeds = std::atoi(argv[++i]);
     } else if (a == "--part" && i + 1 < argc) {
       parts.emplace_back(argv[++i]);
+    } else if (a == "--first" && i + 1 < argc) {
+      first = std::atoi(argv[++i]);
     } else if (a == "--save" && i + 1 < argc) {
       save_dir = argv[++i];
     } else {
@@ -113,7 +116,7 @@ int main(int argc, char** argv) {
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
-  if (seeds < 1) {
+  if (seeds < 1 || first < 1 || first > seeds) {
     usage(argv[0]);
     return 2;
   }
@@ -125,8 +128,8 @@ int main(int argc, char** argv) {
       {"line 4 views 0.8", sim::SensorKind::kLine, "views", 0.8, 60, 4},
       {"line 6 views 0.4", sim::SensorKind::kLine, "views", 0.4, 120, 6},
   };
-  std::printf("bench_quality: build type %s; noise %.2f mm, dropout %.2f; seeds 1..%d\n",
-              SCANMESH_BENCH_BUILD_TYPE, kNoiseMm, kDropout, seeds);
+  std::printf("bench_quality: build type %s; noise %.2f mm, dropout %.2f; seeds %d..%d\n",
+              SCANMESH_BENCH_BUILD_TYPE, kNoiseMm, kDropout, first, seeds);
   std::printf(
       "genus: the mesh's / the part's; used: reduced points in the mesh; m->r: mesh to part "
       "(mean, p95), r->m p95: part to mesh (coverage), mm\n\n");
@@ -139,7 +142,7 @@ int main(int argc, char** argv) {
     const long part_genus = recon::analyze(reference).genus;
     const sim::Scene scene{recon::Mesh(reference)};
     for (const Mode& m : modes) {
-      for (int seed = 1; seed <= seeds; ++seed) {
+      for (int seed = first; seed <= seeds; ++seed) {
         ++runs;
         try {
           const std::vector<Vec3> points = scan(scene, m, static_cast<std::uint64_t>(seed));
