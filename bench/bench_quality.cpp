@@ -42,9 +42,13 @@ struct Mode {
   std::uint32_t views;           // table angles, path "views" only
 };
 
-constexpr double kNoiseMm = 0.02, kDropout = 0.05;
+/// Sensor imperfections of every scan (--noise, --dropout).
+struct Imperfections {
+  double noise_mm = 0.02, dropout = 0.05;
+};
 
-std::vector<Vec3> scan(const sim::Scene& scene, const Mode& m, std::uint64_t seed) {
+std::vector<Vec3> scan(const sim::Scene& scene, const Mode& m, const Imperfections& imp,
+                       std::uint64_t seed) {
   sim::SimConfig cfg;
   cfg.sensor = sim::default_sensor(m.sensor);
   if (m.sensor == sim::SensorKind::kLine) cfg.sensor.profile_points = m.profile_points;
@@ -53,8 +57,8 @@ std::vector<Vec3> scan(const sim::Scene& scene, const Mode& m, std::uint64_t see
   if (m.views > 0) cfg.path.views = m.views;
   cfg.sensor.rate_hz = 20.0 / m.spacing_mm;  // 20 mm/s, as the CLI's default speed
   cfg.imperfections.seed = seed;
-  cfg.imperfections.range_noise_mm = kNoiseMm;
-  cfg.imperfections.dropout_probability = kDropout;
+  cfg.imperfections.range_noise_mm = imp.noise_mm;
+  cfg.imperfections.dropout_probability = imp.dropout;
   const sim::Simulator simulator(scene, cfg);
   sim::ScanRecorder rec;
   simulator.run(rec, &rec);
@@ -86,10 +90,12 @@ void save_points(const std::vector<Vec3>& points, const std::string& dir, const 
 
 void usage(const char* argv0) {
   std::printf(
-      "usage: %s [--seeds N] [--first S] [--part NAME]... [--save DIR]\n"
+      "usage: %s [--seeds N] [--first S] [--part NAME]... [--noise MM] [--dropout P] [--save DIR]\n"
       "  --seeds N    seeds 1..N per part and mode (default 3)\n"
       "  --first S    start at seed S instead of 1 (seeds S..N)\n"
       "  --part NAME  only this built-in part (repeatable; default: all)\n"
+      "  --noise MM   range noise of every scan, sigma in mm (default 0.02)\n"
+      "  --dropout P  probability that a reading drops out (default 0.05)\n"
       "  --save DIR   write the points of every flagged scan to DIR/PART-MODE-SEED.xyz, every\n"
       "               digit kept (17), so `scanmesh reconstruct` meets exactly the same input\n",
       argv0);
@@ -99,6 +105,7 @@ void usage(const char* argv0) {
 
 int main(int argc, char** argv) {
   int seeds = 3, first = 1;
+  Imperfections imp;
   std::vector<std::string> parts;
   std::string save_dir;
   for (int i = 1; i < argc; ++i) {
@@ -109,6 +116,10 @@ int main(int argc, char** argv) {
       parts.emplace_back(argv[++i]);
     } else if (a == "--first" && i + 1 < argc) {
       first = std::atoi(argv[++i]);
+    } else if (a == "--noise" && i + 1 < argc) {
+      imp.noise_mm = std::atof(argv[++i]);
+    } else if (a == "--dropout" && i + 1 < argc) {
+      imp.dropout = std::atof(argv[++i]);
     } else if (a == "--save" && i + 1 < argc) {
       save_dir = argv[++i];
     } else {
@@ -116,7 +127,8 @@ int main(int argc, char** argv) {
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
-  if (seeds < 1 || first < 1 || first > seeds) {
+  if (seeds < 1 || first < 1 || first > seeds || !(imp.noise_mm >= 0) || !(imp.dropout >= 0) ||
+      !(imp.dropout < 1)) {
     usage(argv[0]);
     return 2;
   }
@@ -129,7 +141,7 @@ int main(int argc, char** argv) {
       {"line 6 views 0.4", sim::SensorKind::kLine, "views", 0.4, 120, 6},
   };
   std::printf("bench_quality: build type %s; noise %.2f mm, dropout %.2f; seeds %d..%d\n",
-              SCANMESH_BENCH_BUILD_TYPE, kNoiseMm, kDropout, first, seeds);
+              SCANMESH_BENCH_BUILD_TYPE, imp.noise_mm, imp.dropout, first, seeds);
   std::printf(
       "genus: the mesh's / the part's; used: reduced points in the mesh; m->r: mesh to part "
       "(mean, p95), r->m p95: part to mesh (coverage), mm\n\n");
@@ -145,7 +157,7 @@ int main(int argc, char** argv) {
       for (int seed = first; seed <= seeds; ++seed) {
         ++runs;
         try {
-          const std::vector<Vec3> points = scan(scene, m, static_cast<std::uint64_t>(seed));
+          const std::vector<Vec3> points = scan(scene, m, imp, static_cast<std::uint64_t>(seed));
           const auto t0 = std::chrono::steady_clock::now();
           const recon::ReconstructResult r = recon::reconstruct(points, recon::ReconstructOptions{});
           const double ms =

@@ -192,7 +192,9 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["cube"] = res.cube_mm;
     j["spacing"] = {{"nearest", res.spacing.nearest_mm},
                     {"cross", res.spacing.cross_mm},
-                    {"thickness", res.spacing.thickness_mm}};
+                    {"thickness", res.spacing.thickness_mm},
+                    {"thickness_few", res.spacing.thickness_few_mm},
+                    {"thickness_shape", res.spacing.thickness_shape}};
     j["seeds"] = res.seeds;
     j["relaxed_triangles"] = res.relaxed_triangles;
     j["filled_gaps"] = res.filled_gaps;

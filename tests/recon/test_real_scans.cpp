@@ -17,6 +17,7 @@
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/normals.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
+#include "scanmesh/recon/reduce.hpp"
 #include "support/data.hpp"
 
 namespace {
@@ -360,6 +361,23 @@ TEST_CASE("real scan: the crossing guard keeps the casting's triangles from pier
   CHECK(rep.non_manifold_edges == 0);
   CHECK(rep.non_manifold_vertices == 0);
   CHECK(rep.orientation_consistent);
+}
+
+// The casting's points are a CAD mesh's vertices, crowded along its features: every neighbourhood
+// spans structure, and its shell measures 0.42 cross spacings thick, as a noisy scan's could. But
+// structure shrinks with the neighbourhood (a 12-point fit leaves 0.40 of a 20-point fit's
+// residual; noise 0.85), so the cube stays the sampling's: 14 times that shell would be 8 times
+// the spacing and erase the part.
+TEST_CASE("real scan: the casting's thick shell is structure and leaves the cube to the sampling",
+          "[recon][real]") {
+  const auto points = load_points({"casting/casting_vertices.xyz"}, "", "the casting's spacing");
+  if (!points) return;
+  const recon::SpacingEstimate s = recon::estimate_spacing(*points);
+  INFO("nearest " << s.nearest_mm << " cross " << s.cross_mm << " thickness " << s.thickness_mm
+                  << " few " << s.thickness_few_mm << " shape " << s.thickness_shape);
+  REQUIRE(s.thickness_mm > 0.3 * s.cross_mm);
+  CHECK(s.thickness_few_mm < 0.6 * s.thickness_mm);
+  CHECK(recon::auto_cube_size(s) == std::max(s.nearest_mm, 0.75 * s.cross_mm));
 }
 
 // Orientation across thin walls: the point across the wall has a parallel PCA normal, and the

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <queue>
 #include <random>
@@ -304,6 +305,46 @@ TEST_CASE("estimate_spacing on an anisotropic raster: cross is the line spacing"
   CHECK(s.cross_mm == Approx(1.0).epsilon(0.01));
   CHECK(recon::auto_cube_size(s) == Approx(0.75).epsilon(0.01));
   CHECK(recon::estimate_spacing(pts).cross_mm == s.cross_mm);  // deterministic
+}
+
+// A shell thicker than 0.3 cross spacings: noise (Gaussian, the same at every scale) sets a cube
+// that swallows it; two layers (a wall thinner than the spacing, seen from both sides) leave the
+// cube to the sampling, as does structure that shrinks with the neighbourhood (the casting, a
+// real-scan test).
+TEST_CASE("auto cube: a thick shell of noise is swallowed but a two-layer wall is not", "[recon]") {
+  const double step = 0.5;
+  std::mt19937_64 rng(7);
+  auto gaussian = [&] {  // Box-Muller on the raw generator: the same numbers everywhere
+    const double u1 = (static_cast<double>(rng() >> 11) + 0.5) * 0x1.0p-53;
+    const double u2 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+    return std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
+  };
+  SECTION("noise of 0.6 spacings") {
+    std::vector<Vec3> pts;
+    for (int j = 0; j < 60; ++j)
+      for (int i = 0; i < 60; ++i) pts.emplace_back(i * step, j * step, 0.3 * gaussian());
+    const auto s = recon::estimate_spacing(pts);
+    INFO("nearest " << s.nearest_mm << " cross " << s.cross_mm << " thickness " << s.thickness_mm
+                    << " few " << s.thickness_few_mm << " shape " << s.thickness_shape);
+    REQUIRE(s.thickness_mm > 0.3 * s.cross_mm);  // the case exercises the thick shell
+    CHECK(s.thickness_few_mm / s.thickness_mm == Approx(0.85).margin(0.1));
+    CHECK(s.thickness_shape == Approx(0.8).margin(0.05));
+    CHECK(recon::auto_cube_size(s) == Approx(14 * s.thickness_mm).epsilon(1e-12));
+  }
+  SECTION("two faces 0.7 spacings apart") {
+    std::vector<Vec3> pts;
+    for (int j = 0; j < 60; ++j)
+      for (int i = 0; i < 60; ++i) {
+        pts.emplace_back(i * step, j * step, 0.175);
+        pts.emplace_back((i + 0.5) * step, (j + 0.5) * step, -0.175);
+      }
+    const auto s = recon::estimate_spacing(pts);
+    INFO("nearest " << s.nearest_mm << " cross " << s.cross_mm << " thickness " << s.thickness_mm
+                    << " few " << s.thickness_few_mm << " shape " << s.thickness_shape);
+    REQUIRE(s.thickness_mm > 0.3 * s.cross_mm);
+    CHECK(s.thickness_shape > 0.9);
+    CHECK(recon::auto_cube_size(s) == Approx(std::max(s.nearest_mm, 0.75 * s.cross_mm)).epsilon(1e-12));
+  }
 }
 
 // --- frames --------------------------------------------------------------------------------------
