@@ -859,14 +859,17 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
   const Vec3 centre = (pa + pb + pp) / 3.0;
   const double reach = std::sqrt(std::max({(pa - centre).squaredNorm(), (pb - centre).squaredNorm(),
                                            (pp - centre).squaredNorm()}));
-  // Within clear_ of a new edge counts as on it, as in segments_meet.
-  const double on_ap = clear_ * (pp - pa).norm(), on_pb = clear_ * (pb - pp).norm();
+  // Within clear_ of a new edge counts as on it, as in segments_meet; so does a vertex within
+  // clear_ of the base edge (the front running through one of its own vertices: a triangle on
+  // that edge would lie over the vertex's fan).
+  const double on_ap = clear_ * (pp - pa).norm(), on_pb = clear_ * (pb - pp).norm(),
+               on_ab = clear_ * (pb - pa).norm();
   for (std::uint32_t v : near_front_) {
     if (state_[v] != VertexState::kFront) continue;
     const double hv = std::abs((p_[v] - pa).dot(n1));
     const double dv = (p_[v] - centre).norm();  // inside in projection: within reach + band
     // Inside, or on one of its new edges (a vertex there would be a T-junction).
-    if (v != a && v != b && v != p && hv < band && dv < reach + band && orient(pb, pa, p_[v], n1) > 0 &&
+    if (v != a && v != b && v != p && hv < band && dv < reach + band && orient(pb, pa, p_[v], n1) > -on_ab &&
         orient(pa, pp, p_[v], n1) >= -on_ap && orient(pp, pb, p_[v], n1) >= -on_pb)
       return false;
     for (std::uint32_t fe = head_out_[v]; fe != kNone; fe = edges_[fe].next_out) {

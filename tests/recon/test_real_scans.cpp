@@ -275,17 +275,19 @@ TEST_CASE("real scan: fandisk closes with its sharp edges", "[recon][real][slow]
 // with another loop of the same piece of mesh: it moves by several with any change in the
 // order in which the front meets the thin features, measured over several orderings of the
 // queue; with the reference's own normals it does no better). Asserted: a valid mesh on and
-// covering the part, one component, no crossing triangles, and no genus above today's 10 nor
-// more than today's 9 boundary loops (16 before the front's edge tests counted a vertex within
-// a few float roundings of an edge as touching it: the CAD part's exactly collinear points; 11
-// before the sampling gaps left after the insertion were closed, test below).
+// covering the part, one component, no crossing triangles, and no genus above 10 nor more than
+// today's 6 boundary loops (16 before the front's edge tests counted a vertex within a few float
+// roundings of an edge as touching it: the CAD part's exactly collinear points; 11 before the
+// sampling gaps left after the insertion were closed, test below; 9, with genus 10, before a
+// vertex within those roundings of a triangle's base edge counted as inside it; genus 8 since,
+// one below the part's).
 TEST_CASE("real scan: casting (thin walls) gives a valid mesh on the surface",
           "[recon][real][slow]") {
   Case c{"casting", {"casting/casting_vertices.xyz"}, "", "casting/casting.obj", std::nullopt,
          std::nullopt, 1, true};
   c.min_usage = 0.99;
   c.max_genus = 10;
-  c.max_loops = 9;
+  c.max_loops = 6;
   run_case(c);
 }
 
@@ -414,8 +416,9 @@ TEST_CASE("real scan: casting normals are oriented outward across thin walls",
 
 // On request (`--fill-holes`), the loops are closed where a patch closes them without crossing
 // the mesh: the bunny's five base holes all are, so that a CAD tool gets a closed mesh. The
-// casting's loops lie at thin walls and sharp edges, where most patches would cut through the
-// part, and those stay open (its two 5-edge loops are closed by default: sampling gaps). The
+// casting's loops lie at thin walls and sharp edges, where patches would cut through the part,
+// and those stay open (4 of its 9 loops were filled before the front refused triangles whose
+// base edge runs through a front vertex; its 6 loops since are all of that kind). The
 // topology is otherwise kept (filling adds no handle), the patches face outward like the rest,
 // and the refinement gives them edges of the mesh's length without moving a vertex of the mesh.
 TEST_CASE("real scan: on request the bunny's base holes and the casting's loops are filled",
@@ -444,14 +447,13 @@ TEST_CASE("real scan: on request the bunny's base holes and the casting's loops 
     if (bunny) {
       CHECK(closed.fill.filled == before.boundary_loops);
       CHECK(after.signed_volume > 0);  // closed and outward
-    } else {
-      CHECK(closed.fill.filled >= 1);  // measured: 4 of 9
     }
     const std::size_t mesh_triangles = open.mesh.triangles.size();
     INFO("crossing pairs in the output: " << recon::find_self_intersections(closed.mesh).pairs);
     CHECK(recon::find_self_intersections(closed.mesh, 0, mesh_triangles).pairs == 0);
     check_patches_keep_topology(before, after);
     CHECK(closed.mesh.vertices.size() == open.mesh.vertices.size() + closed.fill.vertices);
+    if (closed.fill.filled == 0) continue;  // the casting today: nothing to measure a patch by
     CHECK(closed.fill.vertices > 0);
     for (std::size_t v = 0; v < open.mesh.vertices.size(); ++v)
       REQUIRE(closed.mesh.vertices[v] == open.mesh.vertices[v]);
@@ -477,7 +479,8 @@ TEST_CASE("real scan: on request the bunny's base holes and the casting's loops 
     INFO("sharpest crease: flat patches " << flat_crease << " deg, refined " << crease << " deg; filled "
          << flat.fill.filled << " flat, " << closed.fill.filled << " refined");
     // Compared over the same loops only: a loop whose flat patch crosses the mesh is filled
-    // refined alone, and its crease has no flat counterpart (the casting: 4 loops refined, 3 flat).
+    // refined alone, and its crease has no flat counterpart (the casting once: 4 loops refined,
+    // 3 flat).
     if (flat.fill.filled == closed.fill.filled) CHECK(crease <= flat_crease + 10);
   }
 }
