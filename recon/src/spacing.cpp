@@ -36,7 +36,7 @@ struct Residual {
   double rms = 0, shape = 0;
 };
 
-/// RMS residual of the least-squares quadric height field h(u, v) over the PCA plane of the
+/// Residuals of the least-squares quadric height field h(u, v) over the PCA plane of the
 /// k >= 12 neighbour offsets d[0..k): noise, without the curvature of a coarsely sampled
 /// surface. `extent` (about the neighbourhood radius) scales u and v.
 Residual quadric_residual(const Vec3* d, std::size_t k, double extent) {
@@ -241,7 +241,7 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
       });
     }
     if (std::isfinite(best)) d2s.push_back(std::sqrt(best));
-    if (k >= 12) {
+    if (k >= kFewNeighbours) {
       for (std::size_t a = 0; a < k; ++a) nb[a] = near[sorted[a].tag].d;
       const Residual fit = quadric_residual(nb, k, std::sqrt(dk2));
       thick.push_back(fit.rms);
