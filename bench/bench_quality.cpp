@@ -44,7 +44,7 @@ struct Mode {
 
 /// Sensor imperfections of every scan (--noise, --dropout).
 struct Imperfections {
-  double noise_mm = 0.02, dropout = 0.05;
+  double noise_mm = 0.02, dropout = 0.05, spike = 0;
 };
 
 std::vector<Vec3> scan(const sim::Scene& scene, const Mode& m, const Imperfections& imp,
@@ -59,6 +59,7 @@ std::vector<Vec3> scan(const sim::Scene& scene, const Mode& m, const Imperfectio
   cfg.imperfections.seed = seed;
   cfg.imperfections.range_noise_mm = imp.noise_mm;
   cfg.imperfections.dropout_probability = imp.dropout;
+  cfg.imperfections.spike_probability = imp.spike;
   const sim::Simulator simulator(scene, cfg);
   sim::ScanRecorder rec;
   simulator.run(rec, &rec);
@@ -90,12 +91,13 @@ void save_points(const std::vector<Vec3>& points, const std::string& dir, const 
 
 void usage(const char* argv0) {
   std::printf(
-      "usage: %s [--seeds N] [--first S] [--part NAME]... [--noise MM] [--dropout P] [--save DIR]\n"
+      "usage: %s [--seeds N] [--first S] [--part NAME]... [--noise MM] [--dropout P] [--spike P] [--save DIR]\n"
       "  --seeds N    seeds 1..N per part and mode (default 3)\n"
       "  --first S    start at seed S instead of 1 (seeds S..N)\n"
       "  --part NAME  only this built-in part (repeatable; default: all)\n"
       "  --noise MM   range noise of every scan, sigma in mm (default 0.02)\n"
       "  --dropout P  probability that a reading drops out (default 0.05)\n"
+      "  --spike P    probability that a reading is a random spike (default 0)\n"
       "  --save DIR   write the points of every flagged scan to DIR/PART-MODE-SEED.xyz, every\n"
       "               digit kept (17), so `scanmesh reconstruct` meets exactly the same input\n",
       argv0);
@@ -120,6 +122,8 @@ int main(int argc, char** argv) {
       imp.noise_mm = std::atof(argv[++i]);
     } else if (a == "--dropout" && i + 1 < argc) {
       imp.dropout = std::atof(argv[++i]);
+    } else if (a == "--spike" && i + 1 < argc) {
+      imp.spike = std::atof(argv[++i]);
     } else if (a == "--save" && i + 1 < argc) {
       save_dir = argv[++i];
     } else {
@@ -128,7 +132,7 @@ int main(int argc, char** argv) {
     }
   }
   if (seeds < 1 || first < 1 || first > seeds || !(imp.noise_mm >= 0) || !(imp.dropout >= 0) ||
-      !(imp.dropout < 1)) {
+      !(imp.dropout < 1) || !(imp.spike >= 0) || !(imp.spike <= 1)) {
     usage(argv[0]);
     return 2;
   }
@@ -140,8 +144,8 @@ int main(int argc, char** argv) {
       {"line 4 views 0.8", sim::SensorKind::kLine, "views", 0.8, 60, 4},
       {"line 6 views 0.4", sim::SensorKind::kLine, "views", 0.4, 120, 6},
   };
-  std::printf("bench_quality: build type %s; noise %.2f mm, dropout %.2f; seeds %d..%d\n",
-              SCANMESH_BENCH_BUILD_TYPE, imp.noise_mm, imp.dropout, first, seeds);
+  std::printf("bench_quality: build type %s; noise %.2f mm, dropout %.2f, spikes %.3f; seeds %d..%d\n",
+              SCANMESH_BENCH_BUILD_TYPE, imp.noise_mm, imp.dropout, imp.spike, first, seeds);
   std::printf(
       "genus: the mesh's / the part's; used: reduced points in the mesh; m->r: mesh to part "
       "(mean, p95), r->m p95: part to mesh (coverage), mm\n\n");
