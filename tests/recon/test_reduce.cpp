@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <numbers>
 #include <numeric>
 #include <queue>
 #include <random>
@@ -313,16 +312,11 @@ TEST_CASE("estimate_spacing on an anisotropic raster: cross is the line spacing"
 // real-scan test).
 TEST_CASE("auto cube: a thick shell of noise is swallowed but a two-layer wall is not", "[recon]") {
   const double step = 0.5;
-  std::mt19937_64 rng(7);
-  auto gaussian = [&] {  // Box-Muller on the raw generator: the same numbers everywhere
-    const double u1 = (static_cast<double>(rng() >> 11) + 0.5) * 0x1.0p-53;
-    const double u2 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
-    return std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
-  };
   SECTION("noise of 0.6 spacings") {
     std::vector<Vec3> pts;
     for (int j = 0; j < 60; ++j)
-      for (int i = 0; i < 60; ++i) pts.emplace_back(i * step, j * step, 0.3 * gaussian());
+      for (int i = 0; i < 60; ++i) pts.emplace_back(i * step, j * step, 0.0);
+    scanmesh::test::add_noise(pts, 0.3, 7);
     const auto s = recon::estimate_spacing(pts);
     INFO("nearest " << s.nearest_mm << " cross " << s.cross_mm << " thickness " << s.thickness_mm
                     << " few " << s.thickness_few_mm << " shape " << s.thickness_shape);
