@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "exact_points.hpp"
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/deviation.hpp"
 #include "scanmesh/recon/intersections.hpp"
@@ -72,21 +73,13 @@ std::vector<Vec3> scan(const sim::Scene& scene, const Mode& m, const Imperfectio
   return points;
 }
 
-/// Writes a flagged scan's points as x y z lines with 17 significant digits (the doubles exactly:
-/// `scanmesh simulate` writes 9, enough for a sensor but not to reproduce this run bit for bit).
+/// Writes a flagged scan's points to DIR/PART-MODE-SEED.xyz (spaces as underscores).
 void save_points(const std::vector<Vec3>& points, const std::string& dir, const std::string& part,
                  const char* mode, int seed) {
   std::string name = dir + "/" + part + "-" + mode + "-" + std::to_string(seed) + ".xyz";
   for (std::size_t i = dir.size() + 1; i < name.size(); ++i)
     if (name[i] == ' ') name[i] = '_';
-  std::FILE* f = std::fopen(name.c_str(), "w");
-  if (f == nullptr) {
-    std::printf("  cannot write %s\n", name.c_str());
-    return;
-  }
-  for (const Vec3& p : points) std::fprintf(f, "%.17g %.17g %.17g\n", p.x(), p.y(), p.z());
-  if (std::fclose(f) != 0) std::printf("  cannot write %s\n", name.c_str());
-  else std::printf("  saved %s\n", name.c_str());
+  scanmesh::bench::save_points_exact(points, name);
 }
 
 void usage(const char* argv0) {

@@ -2,6 +2,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -53,6 +54,29 @@ inline std::vector<Vec3> cube_points(double s, double step) {
         if (on) pts.emplace_back(i * step, j * step, k * step);
       }
   return pts;
+}
+
+/// The points kept with probability keep(p) each, seeded: random dropouts, uneven density.
+template <class Keep>
+std::vector<Vec3> thin_out(const std::vector<Vec3>& pts, std::uint32_t seed, Keep keep) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Vec3> out;
+  for (const Vec3& p : pts)
+    if (unit(rng) < keep(p)) out.push_back(p);
+  return out;
+}
+
+/// A density falling linearly across x, from every point at the lowest x to the share `last`
+/// at the highest (a scan whose sensor moves away, or turns to a grazing angle, across the part).
+inline std::vector<Vec3> density_ramp_x(const std::vector<Vec3>& pts, double last,
+                                        std::uint32_t seed) {
+  double lo = pts.front().x(), hi = lo;
+  for (const Vec3& q : pts) {
+    lo = std::min(lo, q.x());
+    hi = std::max(hi, q.x());
+  }
+  return thin_out(pts, seed, [&](const Vec3& q) { return 1.0 - (1.0 - last) * (q.x() - lo) / (hi - lo); });
 }
 
 /// Adds seeded Gaussian noise of standard deviation sigma to every coordinate.
