@@ -905,8 +905,8 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
     // surface is then flat at its scale and the sector tests above, made in projection on those
     // normals, are exact (measured: no fan crossing on any real scan below 5 degrees; 35-68 %
     // of the tests skipped) -- except at a sliver of the front: a front vertex 15 um beside a
-    // 2 mm front edge that ends at it (the bunny, 40 % of its points dropped towards +x) left
-    // the sector at the edge's end 359 degrees wide by rounding, and an ear laid over two
+    // 2 mm front edge that ends at it (the bunny's points thinned to 15 % towards +x) left the
+    // open sector at the edge's end within a degree of a full turn, and an ear laid over two
     // triangles of that fan passed.
     const Eigen::Vector3f n1f = n1.cast<float>();
     const bool flat = !sliver && std::abs(f_.normal[a].dot(n1f)) >= kCosFlat &&

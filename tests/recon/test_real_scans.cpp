@@ -368,9 +368,10 @@ TEST_CASE("real scan: the crossing guard keeps the casting's triangles from pier
 
 // A scan whose density falls across the part: the bunny's points, thinned from all of them at
 // the lowest x to 15 % at the highest. The front once ran a front edge 15 um beside one of its
-// own vertices (1.3 % of the spacing), which left the sector at the edge's end 359 degrees wide
-// by rounding; the next ear there, over a flat stretch where the fan test is skipped, lay over two
-// bulk triangles (2 crossing pairs). Near-closed and near-full sectors now take the fan test.
+// own vertices (1.3 % of the spacing), which left the open sector at the edge's end within a
+// degree of a full turn; the next ear there, over a flat stretch where the fan test is skipped,
+// lay over two bulk triangles (2 crossing pairs). Near-closed and near-full sectors now take the
+// fan test.
 TEST_CASE("real scan: the bunny's points thinned across x mesh without a crossing pair",
           "[recon][real][slow]") {
   const auto points = load_points({"bunny/reconstruction/bun_zipper.ply"}, "",
