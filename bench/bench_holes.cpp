@@ -212,10 +212,8 @@ int main(int argc, char** argv) {
                     seed, input.size(), res.cube_mm, rep.boundary_loops, rep.genus,
                     valid ? "yes" : "NO", open.c_str(), closed, seconds);
         if (!valid && !save_dir.empty()) {
-          std::string name = save_dir + "/bunny-" + pt.name + "-" + std::to_string(seed) + ".xyz";
-          for (std::size_t c = save_dir.size() + 1; c < name.size(); ++c)
-            if (std::strchr(" %/", name[c]) != nullptr) name[c] = '_';
-          scanmesh::bench::save_points_exact(input, name);
+          scanmesh::bench::save_points_exact(input, save_dir,
+                                             "bunny-" + pt.name + "-" + std::to_string(seed));
         }
       }
     }

@@ -73,15 +73,6 @@ std::vector<Vec3> scan(const sim::Scene& scene, const Mode& m, const Imperfectio
   return points;
 }
 
-/// Writes a flagged scan's points to DIR/PART-MODE-SEED.xyz (spaces as underscores).
-void save_points(const std::vector<Vec3>& points, const std::string& dir, const std::string& part,
-                 const char* mode, int seed) {
-  std::string name = dir + "/" + part + "-" + mode + "-" + std::to_string(seed) + ".xyz";
-  for (std::size_t i = dir.size() + 1; i < name.size(); ++i)
-    if (name[i] == ' ') name[i] = '_';
-  scanmesh::bench::save_points_exact(points, name);
-}
-
 void usage(const char* argv0) {
   std::printf(
       "usage: %s [--seeds N] [--first S] [--part NAME]... [--noise MM] [--dropout P] [--spike P] [--save DIR]\n"
@@ -176,7 +167,8 @@ int main(int argc, char** argv) {
                       dev.mesh_to_ref.mean, dev.mesh_to_ref.p95, dev.ref_to_mesh.p95, ms,
                       valid ? (rep.genus > part_genus ? "  FALSE HANDLE" : "") : "  INVALID");
           if (!save_dir.empty() && (!valid || rep.genus > part_genus || used < 99.0))
-            save_points(points, save_dir, part, m.name, seed);
+            scanmesh::bench::save_points_exact(points, save_dir,
+                                               part + "-" + m.name + "-" + std::to_string(seed));
         } catch (const std::exception& e) {
           ++failed;
           std::printf("%-10s %-22s %4d  failed: %s\n", part.c_str(), m.name, seed, e.what());

@@ -10,10 +10,15 @@
 
 namespace scanmesh::bench {
 
-/// Writes x y z lines with 17 significant digits (the doubles exactly; `scanmesh simulate` and
-/// the xyz writer keep 9, enough for a sensor but not to reproduce a run bit for bit), and
-/// prints "saved FILE" or "cannot write FILE".
-inline void save_points_exact(const std::vector<recon::Vec3>& points, const std::string& file) {
+/// Writes the points to DIR/STEM.xyz (spaces, '%' and '/' in STEM as underscores) as x y z
+/// lines with 17 significant digits (the doubles exactly; `scanmesh simulate` and the xyz writer
+/// keep 9, enough for a sensor but not to reproduce a run bit for bit), and prints "saved FILE"
+/// or "cannot write FILE".
+inline void save_points_exact(const std::vector<recon::Vec3>& points, const std::string& dir,
+                              std::string stem) {
+  for (char& c : stem)
+    if (c == ' ' || c == '%' || c == '/') c = '_';
+  const std::string file = dir + "/" + stem + ".xyz";
   std::FILE* f = std::fopen(file.c_str(), "w");
   if (f == nullptr) {
     std::printf("  cannot write %s\n", file.c_str());
