@@ -28,6 +28,7 @@
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
+#include "support/holes.hpp"
 #include "support/shapes.hpp"
 
 #ifndef SCANMESH_BENCH_BUILD_TYPE
@@ -39,60 +40,6 @@ namespace {
 namespace recon = scanmesh::recon;
 namespace meshio = scanmesh::meshio;
 using recon::Vec3;
-
-/// Points on the area of one hole, each standing for `weight` of it.
-struct Hole {
-  std::vector<Vec3> samples;
-  std::vector<double> weight;
-  double area = 0;
-};
-
-/// The reference's holes: each boundary loop closed by its flat patch (fill_holes without new
-/// vertices), the patch triangles grouped by the vertices they share, and sampled on a
-/// barycentric grid of about `step` spacing.
-std::vector<Hole> reference_holes(const recon::Mesh& ref, double step) {
-  recon::Mesh filled = ref;
-  recon::FillOptions fo;
-  fo.max_edges = recon::FillOptions::kLimit;
-  fo.refine = false;
-  recon::fill_holes(filled, fo);
-  const std::size_t first = ref.triangles.size();
-  std::vector<std::uint32_t> root(filled.vertices.size());
-  std::iota(root.begin(), root.end(), 0u);
-  auto find = [&](std::uint32_t v) {
-    while (root[v] != v) v = root[v] = root[root[v]];
-    return v;
-  };
-  for (std::size_t t = first; t < filled.triangles.size(); ++t) {
-    const auto& tr = filled.triangles[t];
-    for (int k = 1; k < 3; ++k) root[find(tr[k])] = find(tr[0]);
-  }
-  std::vector<std::uint32_t> hole_of_root(filled.vertices.size(), UINT32_MAX);
-  std::vector<Hole> holes;
-  for (std::size_t t = first; t < filled.triangles.size(); ++t) {
-    const auto& tr = filled.triangles[t];
-    std::uint32_t& h = hole_of_root[find(tr[0])];
-    if (h == UINT32_MAX) {
-      h = static_cast<std::uint32_t>(holes.size());
-      holes.emplace_back();
-    }
-    Hole& hole = holes[h];
-    const Vec3 &a = filled.vertices[tr[0]], &b = filled.vertices[tr[1]], &c = filled.vertices[tr[2]];
-    const double area = 0.5 * (b - a).cross(c - a).norm();
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    const int n = std::max(1, static_cast<int>(std::ceil(longest / step)));
-    const std::size_t count = static_cast<std::size_t>(n + 1) * static_cast<std::size_t>(n + 2) / 2;
-    for (int i = 0; i <= n; ++i)
-      for (int j = 0; i + j <= n; ++j) {
-        const double u = static_cast<double>(i) / n, v = static_cast<double>(j) / n;
-        hole.samples.push_back(a + u * (b - a) + v * (c - a));
-        hole.weight.push_back(area / static_cast<double>(count));
-      }
-    hole.area += area;
-  }
-  std::sort(holes.begin(), holes.end(), [](const Hole& l, const Hole& r) { return l.area > r.area; });
-  return holes;
-}
 
 struct Perturbation {
   std::string name;
@@ -168,10 +115,10 @@ int main(int argc, char** argv) {
     const recon::Mesh ref = meshio::read_mesh(file);
     const std::vector<Vec3>& points = ref.vertices;
     const double spacing = recon::estimate_spacing(points).nearest_mm;
-    const std::vector<Hole> holes = reference_holes(ref, 0.2 * spacing);
+    const std::vector<scanmesh::test::Hole> holes = scanmesh::test::reference_holes(ref, 0.2 * spacing);
     std::printf("bench_holes: %s (%zu points, spacing %.3g, %zu holes in the reference:",
                 file.c_str(), points.size(), spacing, holes.size());
-    for (const Hole& h : holes) std::printf(" %.0f", h.area / (spacing * spacing));
+    for (const scanmesh::test::Hole& h : holes) std::printf(" %.0f", h.area / (spacing * spacing));
     std::printf(" spacings^2); build %s; %u seed(s)\n", SCANMESH_BENCH_BUILD_TYPE, seeds);
     std::printf("open: share of each hole's area with no triangle within a quarter cube; a hole "
                 "under 25 %% open is counted as closed\n\n");
@@ -194,13 +141,8 @@ int main(int argc, char** argv) {
         const double reach = 0.25 * (res.cube_mm > 0 ? res.cube_mm : spacing);
         std::string open;
         std::size_t closed = 0;
-        for (const Hole& h : holes) {
-          double uncovered = 0, total = 0;
-          for (std::size_t s = 0; s < h.samples.size(); ++s) {
-            total += h.weight[s];
-            if (surface.distance(h.samples[s]) > reach) uncovered += h.weight[s];
-          }
-          const double share = total > 0 ? 100 * uncovered / total : 0;
+        for (const scanmesh::test::Hole& h : holes) {
+          const double share = scanmesh::test::open_percent(h, surface, reach);
           closed += share < 25 ? 1 : 0;
           char cell[16];
           std::snprintf(cell, sizeof cell, "%s%3.0f", open.empty() ? "" : " ", share);

@@ -34,6 +34,7 @@ struct ReconstructArgs {
   bool ascii = false;
   std::string outliers_file;
   bool no_insert = false;
+  bool zip_holes = false;
   bool no_bulk = false;
   bool progress = false;
   std::size_t fill_holes = 0;
@@ -113,6 +114,7 @@ int run_reconstruct(const ReconstructArgs& args) {
   opt.front.min_angle_deg = args.min_angle_deg;
   opt.front.relaxed_min_angle_deg = std::min(opt.front.relaxed_min_angle_deg, args.min_angle_deg);
   opt.refine.enabled = !args.no_insert;
+  opt.front.keep_holes = !args.zip_holes;
   opt.front.bulk = !args.no_bulk;
   opt.fill.max_edges = args.fill_holes;
   opt.fill.refine = !args.fill_flat;
@@ -284,6 +286,10 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");
   cmd->add_flag("--no-insert", args->no_insert,
                 "leave the points the front did not reach out (no insertion afterwards)");
+  cmd->add_flag("--zip-holes", args->zip_holes,
+                "let the front's relaxed pass close wide loops the mesh surrounds with long "
+                "edges too (by default they stay open: real holes whose rims noise or sparse "
+                "sampling made ragged)");
   cmd->add_flag("--no-bulk", args->no_bulk,
                 "grow the whole mesh with the front from seed triangles (no planar Delaunay "
                 "patches first; slower, for comparison)");

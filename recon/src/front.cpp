@@ -312,6 +312,7 @@ class Builder {
     // strict retry or a depth-first wave did not recover it. The early runs of new edges act
     // as an ordering heuristic that a principled order has to match before this is changed.
     e = FrontEdge{a, b, opp, kNone, kNone, head_out_[a], 0, true, 0, 0};
+    if (id < hole_mark_.size()) hole_mark_[id] = 0;  // a reused slot: see add_triangle
     head_out_[a] = id;
     edges_map_.insert(a, b, id);
     return id;
@@ -453,6 +454,15 @@ class Builder {
   void add_triangle(std::uint32_t eid, std::uint32_t p);
   void grow();
   void fill_small_loops();
+  /// Marks the edges of the deferred edges' loops that are real holes (hole_mark_ 2), for the
+  /// relaxed pass over `batch` (FrontOptions::keep_holes).
+  void mark_hole_loops(const std::vector<std::uint32_t>& batch);
+  std::vector<std::uint8_t> hole_mark_;       // per edge id: 0, 1 visited, 2 on a hole
+  std::vector<std::uint32_t> hole_visited_;   // the ids marked, cleared on the next pass
+  /// A loop is surrounded by the mesh when the cosine between its vector area and its
+  /// vertices' summed normals is at most this (measured: the bunny's holes -0.69 to -0.95,
+  /// raw scans' borders +0.96 to +1; the unscanned tops of rotary scans about -0.6).
+  static constexpr double kHoleWinding = -0.3;
   /// Triangulates the bulk (bulk.hpp) and grows the front from its borders.
   void grow_from_bulk();
   /// Whether the m triangles `ids` around v form one fan, walking across shared edges in the
@@ -1024,6 +1034,9 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   const double lab = (pb - pa).norm();
   const double base = std::max(spacing(a), spacing(b));
   const double gather = mode.radius_factor * base * 1.5;
+  // On a real hole's rim, the relaxed pass reaches front points only as far as the strict one.
+  const bool on_hole = mode.bit == 2 && eid < hole_mark_.size() && hole_mark_[eid] == 2;
+  bool hole_refused = false;
   cand_.clear();
   near_front_.clear();
   near_free_.clear();
@@ -1035,6 +1048,14 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
     // spacing: an isolated point must not pull long triangles across a gap.
     const double r = std::min(gather, mode.radius_factor * std::clamp<double>(spacing(j), base, 1.5 * base));
     if (la2 > r * r || lb2 > r * r || la2 == 0 || lb2 == 0) return;
+    if (on_hole && state_[j] == VertexState::kFront) {
+      const double strict = std::min(opt_.radius_factor * base * 1.5,
+                                     opt_.radius_factor * std::clamp<double>(spacing(j), base, 1.5 * base));
+      if (la2 > strict * strict || lb2 > strict * strict) {
+        hole_refused = true;
+        return;
+      }
+    }
     const Vec3 ua = pj - pa, ub = pj - pb;
     // new triangle (b, a, j)
     Vec3 n1 = (pa - pb).cross(pj - pb);
@@ -1088,6 +1109,9 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
     }
   });
   if (cand_.empty()) {
+    // Refused by the hole rule, the edge is not marked: the next pass may see its loop closed
+    // to a gap.
+    if (hole_refused) return false;
     if (e.no_candidate_gen != candidate_gen_) {
       e.no_candidate = 0;
       e.no_candidate_gen = candidate_gen_;
@@ -1115,6 +1139,14 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
 void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
   const FrontEdge e = edges_[eid];  // copy: the pool may grow below
   const std::uint32_t a = e.a, b = e.b, ep = e.prev, en = e.next;
+  // The edges that replace a hole's edge during a relaxed pass are on that hole.
+  const std::uint8_t hole = eid < hole_mark_.size() ? hole_mark_[eid] : 0;
+  auto inherit = [&](std::uint32_t id) {
+    if (hole != 2) return;
+    if (hole_mark_.size() <= id) hole_mark_.resize(edges_.size(), 0);
+    hole_mark_[id] = 2;
+    hole_visited_.push_back(id);
+  };
   push_triangle({b, a, p});
   const bool p_free = state_[p] == VertexState::kFree;  // a free point has no edges yet
   const bool close_a = !p_free && edges_map_.find(a, p) != nullptr;
@@ -1141,6 +1173,7 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
     kill_edge(ep);
     kill_edge(eid);
     const std::uint32_t e2 = new_edge(p, b, a);
+    inherit(e2);
     edges_[e2].prev = pp;
     edges_[e2].next = en;
     edges_[pp].next = e2;
@@ -1156,6 +1189,7 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
     kill_edge(en);
     kill_edge(eid);
     const std::uint32_t e1 = new_edge(a, p, b);
+    inherit(e1);
     edges_[e1].prev = ep;
     edges_[e1].next = nn;
     edges_[ep].next = e1;
@@ -1175,6 +1209,8 @@ void Builder::add_triangle(std::uint32_t eid, std::uint32_t p) {
     kill_edge(eid);
     const std::uint32_t e1 = new_edge(a, p, b);
     const std::uint32_t e2 = new_edge(p, b, a);
+    inherit(e1);
+    inherit(e2);
     edges_[ep].next = e1;
     edges_[e1].prev = ep;
     edges_[e2].next = en;
@@ -1232,6 +1268,7 @@ void Builder::grow() {
     if (check_every_step_) check_slot_states();
     std::vector<std::uint32_t> batch;
     batch.swap(deferred_);
+    mark_hole_loops(batch);
     for (std::uint32_t id : batch) {
       if (!edges_[id].alive) continue;
       const std::size_t before = tris_.size();
@@ -1239,6 +1276,44 @@ void Builder::grow() {
     }
   }
   if (check_every_step_) check_slot_states();
+}
+
+void Builder::mark_hole_loops(const std::vector<std::uint32_t>& batch) {
+  // Clear the previous pass's marks (only the edges it visited), then walk the loop of every
+  // deferred edge once: 1 = visited, 2 = on a hole (see FrontOptions::keep_holes).
+  for (const std::uint32_t id : hole_visited_)
+    if (id < hole_mark_.size()) hole_mark_[id] = 0;
+  hole_visited_.clear();
+  if (!opt_.keep_holes) return;
+  if (hole_mark_.size() < edges_.size()) hole_mark_.resize(edges_.size(), 0);
+  for (const std::uint32_t start : batch) {
+    if (!edges_[start].alive || hole_mark_[start] != 0) continue;
+    const std::size_t first = hole_visited_.size();
+    // Twice the loop's vector area (Newell), its perimeter, its vertices' summed normals and
+    // spacings.
+    Vec3 area2 = Vec3::Zero(), normals = Vec3::Zero();
+    double perimeter = 0, spacing_sum = 0;
+    std::uint32_t e = start;
+    do {
+      hole_mark_[e] = 1;
+      hole_visited_.push_back(e);
+      const FrontEdge& fe = edges_[e];
+      area2 += p_[fe.a].cross(p_[fe.b]);
+      perimeter += (p_[fe.b] - p_[fe.a]).norm();
+      normals += f_.normal[fe.a].cast<double>();
+      spacing_sum += spacing(fe.a);
+      e = fe.next;
+    } while (e != start);
+    const double n = static_cast<double>(hole_visited_.size() - first);
+    const double sp = spacing_sum / n, area = 0.5 * area2.norm();
+    // The mesh lies on the left of its front edges: the rim of a hole winds clockwise seen
+    // from the side the normals point to (its vector area against them), a border around the
+    // mesh counter-clockwise.
+    const bool surrounded = area2.dot(normals) <= kHoleWinding * area2.norm() * normals.norm();
+    if (surrounded && area >= opt_.hole_min_area * sp * sp &&
+        2 * area >= opt_.hole_min_width * perimeter * sp)
+      for (std::size_t i = first; i < hole_visited_.size(); ++i) hole_mark_[hole_visited_[i]] = 2;
+  }
 }
 
 void Builder::fill_small_loops() {
@@ -2171,6 +2246,8 @@ std::vector<std::string> FrontOptions::validate() const {
   if (!(relaxed_min_angle_deg >= 0 && relaxed_min_angle_deg <= min_angle_deg))
     errors.push_back("relaxed_min_angle_deg must be in [0, min_angle_deg]");
   if (max_valence < 6 || max_valence > 250) errors.push_back("max_valence must be in [6, 250]");
+  if (!(hole_min_area >= 0 && hole_min_area <= 1e6)) errors.push_back("hole_min_area must be in [0, 1e6]");
+  if (!(hole_min_width >= 0 && hole_min_width <= 1e3)) errors.push_back("hole_min_width must be in [0, 1e3]");
   if (bulk_patch_points < 3) errors.push_back("bulk_patch_points must be at least 3");
   if (!(bulk_patch_cone_deg > 0 && bulk_patch_cone_deg < 90))
     errors.push_back("bulk_patch_cone_deg must be in (0, 90) degrees");

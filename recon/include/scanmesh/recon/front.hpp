@@ -40,6 +40,17 @@ struct FrontOptions {
   /// Largest angle between a new triangle's normal and the PCA normal of its new vertex.
   double max_normal_deviation_deg = 60;
   int max_valence = 16;  ///< edges per vertex
+  /// Real holes stay open. Before each relaxed pass, a front loop that the mesh surrounds (it
+  /// winds against its vertices' normals, as the rim of a hole does and a scan's border does
+  /// not) with an area of at least `hole_min_area` and a mean width (twice its area over its
+  /// perimeter) of at least `hole_min_width` local spacings squared and spacings is a hole:
+  /// the relaxed pass may join its edges to free points, and to front points only within the
+  /// strict reach. Without it the relaxed pass zips such holes from their narrow ends with
+  /// edges of 4-6 spacings whenever noise, dropouts or uneven density leave their rims ragged
+  /// (bench_holes). Slits narrower than that, and small loops, are sampling gaps and close.
+  bool keep_holes = true;
+  double hole_min_area = 20;
+  double hole_min_width = 1.8;
   /// Boundary loops with at most this many edges and a perimeter of at most
   /// `fill_perimeter_factor` local spacings are sampling gaps, closed at the end.
   std::size_t fill_max_edges = 8;
