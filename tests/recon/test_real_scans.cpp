@@ -126,6 +126,16 @@ void check_patches_keep_topology(const recon::MeshReport& before, const recon::M
   CHECK(after.duplicate_triangles == 0);
 }
 
+/// A valid mesh of one closed-up piece without handles: no non-manifold edge or vertex,
+/// consistently oriented, genus 0, one component.
+void check_valid_one_piece_genus0(const recon::MeshReport& rep) {
+  CHECK(rep.non_manifold_edges == 0);
+  CHECK(rep.non_manifold_vertices == 0);
+  CHECK(rep.orientation_consistent);
+  CHECK(rep.genus == 0);
+  CHECK(rep.components == 1);
+}
+
 void run_case(const Case& c) {
   const auto loaded = load_points(c.inputs, c.conf, c.name);
   if (!loaded) return;
@@ -254,11 +264,7 @@ TEST_CASE("real scan: igea stays closed with another bulk patch cone (no false h
                 << rep.components << ", bulk triangles " << r.bulk_triangles);
   CHECK(r.bulk_triangles > r.mesh.triangles.size() / 2);
   CHECK(rep.boundary_loops == 0);
-  CHECK(rep.genus == 0);
-  CHECK(rep.components == 1);
-  CHECK(rep.non_manifold_edges == 0);
-  CHECK(rep.non_manifold_vertices == 0);
-  CHECK(rep.orientation_consistent);
+  check_valid_one_piece_genus0(rep);
   CHECK(recon::find_self_intersections(r.mesh).pairs == 0);
 }
 
@@ -383,11 +389,7 @@ TEST_CASE("real scan: the bunny's points thinned across x mesh without a crossin
   const recon::MeshReport rep = recon::analyze(res.mesh);
   INFO(thinned.size() << " points, " << rep.boundary_loops << " loops, genus " << rep.genus);
   CHECK(recon::find_self_intersections(res.mesh).pairs == 0);
-  CHECK(rep.non_manifold_edges == 0);
-  CHECK(rep.non_manifold_vertices == 0);
-  CHECK(rep.orientation_consistent);
-  CHECK(rep.genus == 0);
-  CHECK(rep.components == 1);
+  check_valid_one_piece_genus0(rep);
 }
 
 // The bunny's four large holes (176-304 spacings^2; the fifth, 47, is two to three spacings
@@ -438,11 +440,7 @@ TEST_CASE("real scan: the bunny's large holes stay open under noise and dropouts
                   << kept.boundary_loops);
     CHECK(without < 60);
     CHECK(with_rule >= 60);
-    CHECK(kept.non_manifold_edges == 0);
-    CHECK(kept.non_manifold_vertices == 0);
-    CHECK(kept.orientation_consistent);
-    CHECK(kept.genus == 0);
-    CHECK(kept.components == 1);
+    check_valid_one_piece_genus0(kept);
   }
 }
 
