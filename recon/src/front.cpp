@@ -1033,6 +1033,12 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   const Vec3 mid = 0.5 * (pa + pb);
   const double lab = (pb - pa).norm();
   const double base = std::max(spacing(a), spacing(b));
+  // How far a candidate j may lie from a and b at a radius factor: a sparser candidate may
+  // reach a little further, but never more than 1.5x the edge's own spacing (an isolated point
+  // must not pull long triangles across a gap).
+  auto reach = [&](double factor, std::uint32_t j) {
+    return std::min(factor * base * 1.5, factor * std::clamp<double>(spacing(j), base, 1.5 * base));
+  };
   const double gather = mode.radius_factor * base * 1.5;
   // On a real hole's rim, the relaxed pass reaches front points only as far as the strict one.
   const bool on_hole = mode.bit == 2 && eid < hole_mark_.size() && hole_mark_[eid] == 2;
@@ -1044,13 +1050,10 @@ bool Builder::process(std::uint32_t eid, const Mode& mode) {
   // A point within reach of both end points: the full candidate test.
   auto consider = [&](std::uint32_t j, double la2, double lb2) {
     const Vec3& pj = p_[j];
-    // A sparser candidate may reach a little further, but never more than 1.5x the edge's own
-    // spacing: an isolated point must not pull long triangles across a gap.
-    const double r = std::min(gather, mode.radius_factor * std::clamp<double>(spacing(j), base, 1.5 * base));
+    const double r = reach(mode.radius_factor, j);
     if (la2 > r * r || lb2 > r * r || la2 == 0 || lb2 == 0) return;
     if (on_hole && state_[j] == VertexState::kFront) {
-      const double strict = std::min(opt_.radius_factor * base * 1.5,
-                                     opt_.radius_factor * std::clamp<double>(spacing(j), base, 1.5 * base));
+      const double strict = reach(opt_.radius_factor, j);
       if (la2 > strict * strict || lb2 > strict * strict) {
         hole_refused = true;
         return;
