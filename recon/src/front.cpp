@@ -278,6 +278,7 @@ class Builder {
     if (opt_.crossing_guard) {
       mark_turning_points();
       corner_head_.assign(n, kNone);
+      slot_listed_.assign(n, 0);
     }
   }
 
@@ -576,8 +577,9 @@ class Builder {
     bool stop = false;
     grid_.for_each_range_within(c, reach, [&](std::uint32_t first, std::uint32_t last) {
       for (std::uint32_t s = first; s < last && !stop; ++s) {
+        if (slot_listed_[s] == 0) continue;
         const std::uint32_t v = order[s];
-        if (corner_head_[v] == kNone || (p_[v] - c).squaredNorm() > reach2) continue;
+        if ((p_[v] - c).squaredNorm() > reach2) continue;
         for (std::uint32_t n = corner_head_[v]; n != kNone && !stop; n = corners_[n].next)
           stop = f(corners_[n].tri);
       }
@@ -586,12 +588,19 @@ class Builder {
   }
   std::vector<std::uint8_t> turning_;
   std::vector<std::uint32_t> corner_head_;  // per vertex: first node of its list, or kNone
+  /// Per grid slot: whether that slot's point has a list (corner_head_ not kNone), so that the
+  /// searches of listed triangles read one byte a point in the grid's order and look up only
+  /// the points with a list.
+  std::vector<std::uint8_t> slot_listed_;
   struct CornerNode {
     std::uint32_t tri, next;
   };
   std::vector<CornerNode> corners_;
   std::uint32_t free_corner_ = kNone;  // recycled nodes, linked through next
   std::vector<std::uint32_t> near_tris_;
+  /// crosses_mesh: per triangle, the call that last fetched it (stamp_; 2 bytes a triangle).
+  std::vector<std::uint16_t> tri_stamp_;
+  std::uint16_t stamp_ = 0;
 
   static constexpr double kMaxSparsity = 2.5;
   /// Cosine of 5 degrees: corner normals this close to a new triangle's skip its fan test.
@@ -1981,6 +1990,7 @@ void Builder::link_corner(std::uint32_t v, std::uint32_t tri) {
     corners_.push_back({tri, corner_head_[v]});
   }
   corner_head_[v] = node;
+  slot_listed_[slot_of_[v]] = 1;
 }
 
 void Builder::release_corners(std::uint32_t v) {
@@ -1991,6 +2001,7 @@ void Builder::release_corners(std::uint32_t v) {
   corners_[last].next = free_corner_;
   free_corner_ = node;
   corner_head_[v] = kNone;
+  slot_listed_[slot_of_[v]] = 0;
 }
 
 void Builder::push_triangle(const Triangle& t) {
@@ -2040,6 +2051,7 @@ void Builder::mark_near_turning(const Vec3& c, double r) {
 void Builder::rebuild_corner_lists() {
   if (corner_head_.empty()) return;
   std::fill(corner_head_.begin(), corner_head_.end(), kNone);
+  std::fill(slot_listed_.begin(), slot_listed_.end(), std::uint8_t{0});
   corners_.clear();
   free_corner_ = kNone;
   for (std::uint32_t id = 0; id < tris_.size(); ++id)
@@ -2090,13 +2102,20 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
   // edges are at most about `radius` long: a triangle that meets t has a corner within `near`
   // of t's centre. Only those corners' lists are walked (the cells hold about five times as
   // many points as the ball).
+  // A triangle is listed at each of its corners near c: the stamps let it be fetched and
+  // tested once (most of the time goes to those fetches, cache misses).
+  if (tri_stamp_.size() < tris_.size()) tri_stamp_.resize(tris_.size() + tris_.size() / 4, 0);
+  if (++stamp_ == 0) {  // wrapped: clear every stamp, start again
+    std::fill(tri_stamp_.begin(), tri_stamp_.end(), std::uint16_t{0});
+    stamp_ = 1;
+  }
   any_listed_triangle_near(tb.centre, tb.reach + 0.6 * radius, [&](std::uint32_t id) {
+    if (tri_stamp_[id] == stamp_) return false;
+    tri_stamp_[id] = stamp_;
     const Triangle& q = tris_[id];
     if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(id);
     return false;
   });
-  std::sort(near_tris_.begin(), near_tris_.end());
-  near_tris_.erase(std::unique(near_tris_.begin(), near_tris_.end()), near_tris_.end());
   const Vec3 n = (q1 - q0).cross(q2 - q0);
   const double tol = on_plane_tol(n);
   for (std::uint32_t id : near_tris_)
