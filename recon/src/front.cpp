@@ -432,11 +432,14 @@ class Builder {
     }
 #endif
   }
-  /// Debug check that the scan's slot-ordered states mirror the states (set_state); O(points):
-  /// after every triangle on small clouds, at the end of every growth on all.
+  /// Debug check that the scan's slot-ordered states mirror the states (set_state), and the
+  /// per-slot list flags the lists; O(points): after every triangle on small clouds, at the end
+  /// of every growth on all.
   void check_slot_states() const {
 #ifndef NDEBUG
     for (std::uint32_t v = 0; v < state_.size(); ++v) assert(slot_state_[slot_of_[v]] == state_[v]);
+    for (std::uint32_t v = 0; v < corner_head_.size(); ++v)
+      assert((slot_listed_[slot_of_[v]] != 0) == (corner_head_[v] != kNone));
 #endif
   }
 
