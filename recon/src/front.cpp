@@ -571,10 +571,17 @@ class Builder {
   /// normal n covers (see the definition).
   void cover_free_points(std::uint32_t a, std::uint32_t b, std::uint32_t p, const Vec3& n,
                          double spacing);
-  /// Calls f(triangle id) for every listed triangle of the vertices within `reach` of c (a
-  /// triangle once per listed corner there), until f returns true; returns whether it did.
+  /// Calls f(triangle id) once for every listed triangle of the vertices within `reach` of c,
+  /// until f returns true; returns whether it did. A triangle is listed at each of its corners
+  /// there: a 2-byte stamp per triangle (the call that last saw it) lets f see it once, and
+  /// most of a search's time is those fetches (list node, triangle, corners: cache misses).
   template <class F>
   bool any_listed_triangle_near(const Vec3& c, double reach, F&& f) const {
+    if (tri_stamp_.size() < tris_.size()) tri_stamp_.resize(tris_.size() + tris_.size() / 4, 0);
+    if (++stamp_ == 0) {  // wrapped: clear every stamp, start again
+      std::fill(tri_stamp_.begin(), tri_stamp_.end(), std::uint16_t{0});
+      stamp_ = 1;
+    }
     const std::uint32_t* order = grid_.order().data();
     const double reach2 = reach * reach;
     bool stop = false;
@@ -583,8 +590,12 @@ class Builder {
         if (slot_listed_[s] == 0) continue;
         const std::uint32_t v = order[s];
         if ((p_[v] - c).squaredNorm() > reach2) continue;
-        for (std::uint32_t n = corner_head_[v]; n != kNone && !stop; n = corners_[n].next)
-          stop = f(corners_[n].tri);
+        for (std::uint32_t n = corner_head_[v]; n != kNone && !stop; n = corners_[n].next) {
+          const std::uint32_t id = corners_[n].tri;
+          if (tri_stamp_[id] == stamp_) continue;
+          tri_stamp_[id] = stamp_;
+          stop = f(id);
+        }
       }
     });
     return stop;
@@ -601,9 +612,10 @@ class Builder {
   std::vector<CornerNode> corners_;
   std::uint32_t free_corner_ = kNone;  // recycled nodes, linked through next
   std::vector<std::uint32_t> near_tris_;
-  /// crosses_mesh: per triangle, the call that last fetched it (stamp_; 2 bytes a triangle).
-  std::vector<std::uint16_t> tri_stamp_;
-  std::uint16_t stamp_ = 0;
+  /// any_listed_triangle_near: per triangle, the search that last saw it (stamp_; 2 bytes a
+  /// triangle). Scratch state of a const search, hence mutable.
+  mutable std::vector<std::uint16_t> tri_stamp_;
+  mutable std::uint16_t stamp_ = 0;
 
   static constexpr double kMaxSparsity = 2.5;
   /// Cosine of 5 degrees: corner normals this close to a new triangle's skip its fan test.
@@ -2105,16 +2117,7 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
   // edges are at most about `radius` long: a triangle that meets t has a corner within `near`
   // of t's centre. Only those corners' lists are walked (the cells hold about five times as
   // many points as the ball).
-  // A triangle is listed at each of its corners near c: the stamps let it be fetched and
-  // tested once (most of the time goes to those fetches, cache misses).
-  if (tri_stamp_.size() < tris_.size()) tri_stamp_.resize(tris_.size() + tris_.size() / 4, 0);
-  if (++stamp_ == 0) {  // wrapped: clear every stamp, start again
-    std::fill(tri_stamp_.begin(), tri_stamp_.end(), std::uint16_t{0});
-    stamp_ = 1;
-  }
   any_listed_triangle_near(tb.centre, tb.reach + 0.6 * radius, [&](std::uint32_t id) {
-    if (tri_stamp_[id] == stamp_) return false;
-    tri_stamp_[id] = stamp_;
     const Triangle& q = tris_[id];
     if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(id);
     return false;
