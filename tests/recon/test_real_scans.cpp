@@ -19,6 +19,7 @@
 #include "scanmesh/recon/reconstruct.hpp"
 #include "scanmesh/recon/reduce.hpp"
 #include "support/data.hpp"
+#include "support/shared_mesh.hpp"
 #include "support/holes.hpp"
 #include "support/shapes.hpp"
 
@@ -401,12 +402,9 @@ TEST_CASE("real scan: the bunny's points thinned across x mesh without a crossin
 // spacing, 49 -> 66 % with 40 % dropouts; of the 176-spacings^2 one 46 -> 73 %, 33 -> 60 %.
 TEST_CASE("real scan: the bunny's large holes stay open under noise and dropouts",
           "[recon][real][slow]") {
-  const auto file = test::shared_file("bunny/reconstruction/bun_zipper.ply");
-  if (!file) {
-    WARN("SCANMESH_DATA is not set: skipping the bunny's holes under noise and dropouts");
-    return;
-  }
-  const recon::Mesh ref = meshio::read_mesh(*file);
+  const auto loaded = test::shared_mesh("bunny/reconstruction/bun_zipper.ply", "the bunny's holes under noise and dropouts");
+  if (!loaded) return;
+  const recon::Mesh& ref = *loaded;
   const double spacing = recon::estimate_spacing(ref.vertices).nearest_mm;
   const std::vector<test::Hole> holes = test::reference_holes(ref, 0.2 * spacing);
   REQUIRE(holes.size() == 5);
@@ -466,12 +464,9 @@ TEST_CASE("real scan: the casting's thick shell is structure and leaves the cube
 // the reference's vertex normals, among the normals PCA resolves (|cos| >= 0.7).
 TEST_CASE("real scan: casting normals are oriented outward across thin walls",
           "[recon][real][slow]") {
-  const auto file = test::shared_file("casting/casting.obj");
-  if (!file) {
-    WARN("SCANMESH_DATA is not set: skipping the casting normals");
-    return;
-  }
-  const recon::Mesh m = meshio::read_mesh(*file);
+  const auto loaded = test::shared_mesh("casting/casting.obj", "the casting normals");
+  if (!loaded) return;
+  const recon::Mesh& m = *loaded;
   std::vector<Vec3> vn(m.vertices.size(), Vec3::Zero());
   for (const auto& t : m.triangles) {
     const Vec3 n = (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]);

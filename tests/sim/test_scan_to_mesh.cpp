@@ -18,6 +18,7 @@
 #include "scanmesh/sim/simulator.hpp"
 #include "scanmesh/sim/stream.hpp"
 #include "support/data.hpp"
+#include "support/shared_mesh.hpp"
 
 namespace {
 
@@ -127,12 +128,9 @@ TEST_CASE("a raster scan with many dropouts meshes without a triangle over a fro
 // mesh stays open; at 0.02 (flange 3.6 spacings thick) 6 loops.
 TEST_CASE("the casting's surface sampled evenly meshes closed with its 8 bolt holes and bore",
           "[recon][real][slow]") {
-  const auto file = test::shared_file("casting/casting.obj");
-  if (!file) {
-    WARN("SCANMESH_DATA is not set: skipping the evenly sampled casting");
-    return;
-  }
-  const recon::Mesh ref = meshio::read_mesh(*file);
+  const auto loaded = test::shared_mesh("casting/casting.obj", "the evenly sampled casting");
+  if (!loaded) return;
+  const recon::Mesh& ref = *loaded;
   for (const double spacing : {0.01, 0.015}) {
     const std::vector<Vec3> points = sim::sample_surface(ref, spacing, 1);
     const recon::ReconstructResult r = recon::reconstruct(points);
