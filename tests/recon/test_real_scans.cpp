@@ -19,9 +19,9 @@
 #include "scanmesh/recon/reconstruct.hpp"
 #include "scanmesh/recon/reduce.hpp"
 #include "support/data.hpp"
-#include "support/shared_mesh.hpp"
 #include "support/holes.hpp"
 #include "support/shapes.hpp"
+#include "support/shared_mesh.hpp"
 
 namespace {
 
@@ -402,7 +402,8 @@ TEST_CASE("real scan: the bunny's points thinned across x mesh without a crossin
 // spacing, 49 -> 66 % with 40 % dropouts; of the 176-spacings^2 one 46 -> 73 %, 33 -> 60 %.
 TEST_CASE("real scan: the bunny's large holes stay open under noise and dropouts",
           "[recon][real][slow]") {
-  const auto loaded = test::shared_mesh("bunny/reconstruction/bun_zipper.ply", "the bunny's holes under noise and dropouts");
+  const auto loaded = test::shared_mesh("bunny/reconstruction/bun_zipper.ply",
+                                        "the bunny's holes under noise and dropouts");
   if (!loaded) return;
   const recon::Mesh& ref = *loaded;
   const double spacing = recon::estimate_spacing(ref.vertices).nearest_mm;

@@ -11,13 +11,11 @@
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/deviation.hpp"
 #include "scanmesh/recon/intersections.hpp"
-#include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "scanmesh/sim/parts.hpp"
 #include "scanmesh/sim/sampling.hpp"
 #include "scanmesh/sim/simulator.hpp"
 #include "scanmesh/sim/stream.hpp"
-#include "support/data.hpp"
 #include "support/shared_mesh.hpp"
 
 namespace {
