@@ -17,7 +17,7 @@ namespace scanmesh::test {
 
 /// Points on the area of one hole, each standing for `weight` of it.
 struct Hole {
-  std::vector<::scanmesh::recon::Vec3> samples;
+  std::vector<recon::Vec3> samples;
   std::vector<double> weight;
   double area = 0;
 };
@@ -25,12 +25,12 @@ struct Hole {
 /// The reference's holes: each boundary loop closed by its flat patch (fill_holes without new
 /// vertices), the patch triangles grouped by the vertices they share, and sampled on a
 /// barycentric grid of about `step` spacing.
-inline std::vector<Hole> reference_holes(const ::scanmesh::recon::Mesh& ref, double step) {
-  ::scanmesh::recon::Mesh filled = ref;
-  ::scanmesh::recon::FillOptions fo;
-  fo.max_edges = ::scanmesh::recon::FillOptions::kLimit;
+inline std::vector<Hole> reference_holes(const recon::Mesh& ref, double step) {
+  recon::Mesh filled = ref;
+  recon::FillOptions fo;
+  fo.max_edges = recon::FillOptions::kLimit;
   fo.refine = false;
-  ::scanmesh::recon::fill_holes(filled, fo);
+  recon::fill_holes(filled, fo);
   const std::size_t first = ref.triangles.size();
   std::vector<std::uint32_t> root(filled.vertices.size());
   std::iota(root.begin(), root.end(), 0u);
@@ -52,7 +52,8 @@ inline std::vector<Hole> reference_holes(const ::scanmesh::recon::Mesh& ref, dou
       holes.emplace_back();
     }
     Hole& hole = holes[h];
-    const ::scanmesh::recon::Vec3 &a = filled.vertices[tr[0]], &b = filled.vertices[tr[1]], &c = filled.vertices[tr[2]];
+    const recon::Vec3 &a = filled.vertices[tr[0]], &b = filled.vertices[tr[1]],
+                      &c = filled.vertices[tr[2]];
     const double area = 0.5 * (b - a).cross(c - a).norm();
     const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
     const int n = std::max(1, static_cast<int>(std::ceil(longest / step)));
@@ -65,12 +66,13 @@ inline std::vector<Hole> reference_holes(const ::scanmesh::recon::Mesh& ref, dou
       }
     hole.area += area;
   }
-  std::sort(holes.begin(), holes.end(), [](const Hole& l, const Hole& r) { return l.area > r.area; });
+  std::sort(holes.begin(), holes.end(),
+            [](const Hole& l, const Hole& r) { return l.area > r.area; });
   return holes;
 }
 
 /// The share (0-100) of a hole's area farther than `reach` from `surface`.
-inline double open_percent(const Hole& h, const ::scanmesh::recon::SurfaceDistance& surface, double reach) {
+inline double open_percent(const Hole& h, const recon::SurfaceDistance& surface, double reach) {
   double uncovered = 0, total = 0;
   for (std::size_t s = 0; s < h.samples.size(); ++s) {
     total += h.weight[s];
