@@ -201,6 +201,8 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["relaxed_triangles"] = res.relaxed_triangles;
     j["filled_gaps"] = res.filled_gaps;
     j["closed_gaps"] = res.gaps.filled;
+    j["untangled_gaps"] = res.untangle.closed;
+    j["untangle_removed_triangles"] = res.untangle.removed;
     j["removed_fan_triangles"] = res.removed_fan_triangles;
     j["inserted_points"] = res.refine.inserted;
     j["inserted_by_edge_split"] = res.refine.edge_splits;
@@ -234,6 +236,10 @@ int run_reconstruct(const ReconstructArgs& args) {
     if (res.gaps.filled > 0)
       std::cout << "closed gaps      " << res.gaps.filled
                 << " (small loops the front left, closed with their own vertices)\n";
+    if (res.untangle.closed > 0)
+      std::cout << "untangled gaps   " << res.untangle.closed << " (" << res.untangle.removed
+                << " triangles reaching through them removed and closed again, "
+                << res.untangle.reinserted << " points put back)\n";
     if (args.fill_holes > 0)
       std::cout << "filled holes     " << res.fill.filled << " (" << res.fill.triangles
                 << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept

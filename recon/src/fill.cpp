@@ -574,6 +574,7 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
   };
   // patch_of[t - mesh_triangles]: the loop whose patch triangle t is
   std::vector<std::uint32_t> patch_of;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> crossed;  // (loop, mesh triangle)
   while (true) {
     stats = {};
     patch_of.clear();
@@ -607,6 +608,12 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
         const std::size_t na = report.loops[a].vertices.size(), nb = report.loops[b].vertices.size();
         crosses[na > nb || (na == nb && a > b) ? a : b] = 1;
       }
+      // The mesh triangles that a loop's flattest patch crosses, for untangle_gaps.
+      for (const auto& [t1, t2] : crossing.examples) {
+        const std::uint32_t a = loop_of(t1), b = loop_of(t2);
+        if (a == kNone && b != kNone && crosses[b] && level[b] == kPlain)
+          crossed.emplace_back(b, t1);
+      }
       for (std::size_t li = 0; li < level.size(); ++li)
         if (crosses[li] && level[li] != kOpen) {
           level[li] = static_cast<Level>(level[li] + 1);
@@ -617,7 +624,145 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
     mesh.triangles.resize(mesh_triangles);
     mesh.vertices.resize(mesh_vertices);
   }
+  std::sort(crossed.begin(), crossed.end());
+  crossed.erase(std::unique(crossed.begin(), crossed.end()), crossed.end());
+  for (std::size_t i = 0; i < crossed.size(); ++i) {
+    if (i == 0 || crossed[i].first != crossed[i - 1].first) stats.crossed.emplace_back();
+    stats.crossed.back().push_back(crossed[i].second);
+  }
   return stats;
+}
+
+namespace {
+
+/// One loop's untangling (see untangle_gaps): false, and `mesh` unchanged, when it does not help.
+bool untangle_one(Mesh& mesh, const FillOptions& options, std::span<const float> vertex_spacing,
+                  std::span<const std::uint32_t> crossed, UntangleStats& st) {
+  Mesh trial;
+  trial.vertices = mesh.vertices;
+  trial.triangles.reserve(mesh.triangles.size());
+  std::vector<std::uint32_t> uses(mesh.vertices.size(), 0);
+  std::vector<std::uint32_t> loose;  // corners of the removed triangles
+  std::size_t next = 0;
+  for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Triangle& tri = mesh.triangles[t];
+    if (next < crossed.size() && crossed[next] == t) {
+      ++next;
+      loose.insert(loose.end(), tri.begin(), tri.end());
+      continue;
+    }
+    trial.triangles.push_back(tri);
+    for (std::uint32_t v : tri) ++uses[v];
+  }
+  std::sort(loose.begin(), loose.end());
+  loose.erase(std::unique(loose.begin(), loose.end()), loose.end());
+  std::vector<std::uint32_t> stranded;
+  for (std::uint32_t v : loose)
+    if (uses[v] == 0) stranded.push_back(v);
+  const std::size_t kept = trial.triangles.size();
+  fill_holes(trial, options, vertex_spacing);
+  // A stranded vertex goes back into the patch triangle it lies in, split in three, or, when
+  // it lies on one of the triangle's edges (a point left in the middle of a gap's edge), into
+  // that edge, split with the triangles on both sides. Every part keeps its triangle's
+  // orientation; none is a sliver (the vertex is not near a corner).
+  constexpr double kMinShare = 0.1;  // barycentric coordinates, of the other corners at least
+  std::size_t reinserted = 0;
+  std::vector<std::size_t> rewritten;  // triangles below `kept` that an edge split changed
+  auto split_edge = [&](std::size_t t, int k, std::uint32_t s) {
+    const Triangle tri = trial.triangles[t];
+    const std::uint32_t w = tri[k], u = tri[(k + 1) % 3], v = tri[(k + 2) % 3];
+    trial.triangles[t] = {w, u, s};
+    trial.triangles.push_back({w, s, v});
+    for (std::size_t o = 0; o < trial.triangles.size(); ++o) {  // the triangle across: v -> u
+      const Triangle other = trial.triangles[o];
+      for (int m = 0; m < 3; ++m) {
+        if (other[m] != v || other[(m + 1) % 3] != u) continue;
+        const std::uint32_t x = other[(m + 2) % 3];
+        trial.triangles[o] = {x, v, s};
+        trial.triangles.push_back({x, s, u});
+        if (o < kept) rewritten.push_back(o);
+        return;
+      }
+    }
+  };
+  for (std::uint32_t s : stranded) {
+    const Vec3& p = trial.vertices[s];
+    for (std::size_t t = kept; t < trial.triangles.size(); ++t) {
+      const Triangle tri = trial.triangles[t];
+      const Vec3 &a = trial.vertices[tri[0]], &b = trial.vertices[tri[1]],
+                 &c = trial.vertices[tri[2]];
+      const Vec3 n = (b - a).cross(c - a);
+      const double n2 = n.squaredNorm();
+      if (!(n2 > 0)) continue;
+      if (std::abs((p - a).dot(n)) > 0.25 * vertex_spacing[s] * std::sqrt(n2)) continue;
+      const double share[3] = {(c - b).cross(p - b).dot(n) / n2, (a - c).cross(p - c).dot(n) / n2,
+                               (b - a).cross(p - a).dot(n) / n2};
+      int low = -1, lows = 0;
+      for (int k = 0; k < 3; ++k)
+        if (!(share[k] > kMinShare)) {
+          low = k;
+          ++lows;
+        }
+      if (lows == 0) {
+        trial.triangles[t] = {tri[0], tri[1], s};
+        trial.triangles.push_back({tri[1], tri[2], s});
+        trial.triangles.push_back({tri[2], tri[0], s});
+      } else if (lows == 1 && share[low] > -kMinShare) {
+        split_edge(t, low, s);
+      } else {
+        continue;
+      }
+      ++reinserted;
+      break;
+    }
+  }
+  // Everything new at the end, for the crossing test: the triangles an edge split changed
+  // below `kept` move there.
+  std::sort(rewritten.begin(), rewritten.end());
+  rewritten.erase(std::unique(rewritten.begin(), rewritten.end()), rewritten.end());
+  for (auto it = rewritten.rbegin(); it != rewritten.rend(); ++it) {
+    const Triangle moved = trial.triangles[*it];
+    trial.triangles.erase(trial.triangles.begin() + static_cast<std::ptrdiff_t>(*it));
+    trial.triangles.push_back(moved);
+  }
+  const std::size_t unchanged = kept - rewritten.size();
+  const MeshReport before = analyze(mesh), after = analyze(trial);
+  if (after.non_manifold_edges > 0 || after.non_manifold_vertices > 0 ||
+      !after.orientation_consistent || after.boundary_loops >= before.boundary_loops ||
+      after.components != before.components || reinserted < stranded.size() ||
+      find_self_intersections(trial, 1, unchanged).pairs > 0)
+    return false;
+  st.removed += crossed.size();
+  st.closed += before.boundary_loops - after.boundary_loops;
+  st.reinserted += reinserted;
+  mesh = std::move(trial);
+  return true;
+}
+
+}  // namespace
+
+UntangleStats untangle_gaps(Mesh& mesh, const FillOptions& options,
+                            std::span<const float> vertex_spacing, const FillStats& first) {
+  UntangleStats st;
+  if (vertex_spacing.size() < mesh.vertices.size()) return st;
+  // Gap by gap, each on the mesh the ones before left, which renumbered the triangles: the
+  // crossed triangles are found by their corners (one an earlier gap changed is gone, and that
+  // gap is left alone).
+  std::vector<std::vector<Triangle>> targets;
+  for (const std::vector<std::uint32_t>& crossed : first.crossed) {
+    if (crossed.empty() || crossed.size() > 2 * options.max_edges) continue;
+    std::vector<Triangle>& tris = targets.emplace_back();
+    for (std::uint32_t t : crossed) tris.push_back(mesh.triangles[t]);
+    std::sort(tris.begin(), tris.end());
+  }
+  std::vector<std::uint32_t> list;
+  for (const std::vector<Triangle>& tris : targets) {
+    list.clear();
+    for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t)
+      if (std::binary_search(tris.begin(), tris.end(), mesh.triangles[t])) list.push_back(t);
+    if (list.size() == tris.size()) untangle_one(mesh, options, vertex_spacing, list, st);
+  }
+  return st;
 }
 
 }  // namespace scanmesh::recon

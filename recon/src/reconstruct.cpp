@@ -247,6 +247,8 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     gap_fill.max_perimeter_spacings = options.front.fill_perimeter_factor;
     gap_fill.refine = false;
     res.gaps = fill_holes(res.mesh, gap_fill, vertex_spacing);
+    if (options.untangle_gaps && res.gaps.crossing > 0)
+      res.untangle = untangle_gaps(res.mesh, gap_fill, vertex_spacing, res.gaps);
   }
   if (options.fill.max_edges > 0) {
     stage("fill");

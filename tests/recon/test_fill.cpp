@@ -354,3 +354,114 @@ TEST_CASE("fill_holes leaves a non-manifold mesh and a lone triangle alone, and 
   ro.fill.max_edges = FillOptions::kLimit + 1;
   CHECK_FALSE(ro.validate().empty());
 }
+
+namespace {
+
+/// Two flat sheets 0.7 apart, each a 5 x 5 grid of unit squares split along their diagonal:
+/// below (z = 0) one triangle missing (a gap), above (z = 0.7) the triangle over it replaced by a
+/// spike of three triangles down to a point `s` of the lower sheet lying in that gap: the
+/// front's mistake across a thin wall. Returns the index of s.
+std::uint32_t spiked_sheets(Mesh& m, const Vec3& s) {
+  auto id = [](std::uint32_t sheet, std::uint32_t i, std::uint32_t j) {
+    return sheet * 25 + j * 5 + i;
+  };
+  for (std::uint32_t sheet = 0; sheet < 2; ++sheet)
+    for (std::uint32_t j = 0; j < 5; ++j)
+      for (std::uint32_t i = 0; i < 5; ++i) m.vertices.emplace_back(i, j, 0.7 * sheet);
+  const auto spike = static_cast<std::uint32_t>(m.vertices.size());
+  m.vertices.push_back(s);
+  for (std::uint32_t sheet = 0; sheet < 2; ++sheet)
+    for (std::uint32_t j = 0; j < 4; ++j)
+      for (std::uint32_t i = 0; i < 4; ++i) {
+        const Triangle low = {id(sheet, i, j), id(sheet, i + 1, j), id(sheet, i + 1, j + 1)};
+        if (i == 2 && j == 2 && sheet == 0) {  // the gap
+        } else if (i == 2 && j == 2) {         // the spike
+          m.triangles.push_back({low[0], low[1], spike});
+          m.triangles.push_back({low[1], low[2], spike});
+          m.triangles.push_back({low[2], low[0], spike});
+        } else {
+          m.triangles.push_back(low);
+        }
+        m.triangles.push_back({id(sheet, i, j), id(sheet, i + 1, j + 1), id(sheet, i, j + 1)});
+      }
+  return spike;
+}
+
+}  // namespace
+
+TEST_CASE("untangle_gaps removes a spike through a gap, closes both sheets and puts the point "
+          "back into its own sheet",
+          "[recon][fill]") {
+  // s in the middle of the gap (a face split) or on its diagonal (an edge split, with the
+  // lower sheet's triangle across it).
+  const auto [s_at, fan] = GENERATE(table<Vec3, std::size_t>(
+      {{Vec3(2.0 + 2.0 / 3.0, 2.0 + 1.0 / 3.0, 0), 3}, {Vec3(2.5, 2.5, 0), 4}}));
+  Mesh m;
+  const std::uint32_t s = spiked_sheets(m, s_at);
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  FillOptions opt;
+  opt.max_edges = 8;
+  opt.refine = false;
+  opt.max_perimeter_spacings = 10;
+  REQUIRE(analyze(m).boundary_loops == 3);
+  const FillStats first = fill_holes(m, opt, spacing);
+  CHECK(first.filled == 0);
+  CHECK(first.crossing == 1);
+  REQUIRE(first.crossed.size() == 1);
+  CHECK(first.crossed[0].size() == 3);
+
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, opt, spacing, first);
+  CHECK(u.removed == 3);
+  CHECK(u.closed == 1);
+  CHECK(u.reinserted == 1);
+  const auto r = analyze(m);
+  CHECK(r.boundary_loops == 2);  // the two sheets' borders
+  CHECK(r.components == 2);
+  CHECK(r.non_manifold_edges == 0);
+  CHECK(r.non_manifold_vertices == 0);
+  CHECK(r.orientation_consistent);
+  CHECK(r.referenced_vertices == m.vertices.size());
+  CHECK(find_self_intersections(m).pairs == 0);
+  // Each sheet flat again, s in the lower one.
+  std::size_t at_s = 0;
+  for (const Triangle& t : m.triangles) {
+    const double z = m.vertices[t[0]].z();
+    CHECK(m.vertices[t[1]].z() == z);
+    CHECK(m.vertices[t[2]].z() == z);
+    if (t[0] == s || t[1] == s || t[2] == s) ++at_s;
+  }
+  CHECK(at_s == fan);
+  CHECK(m.triangles.size() == 2 * 32 + 2);  // one split into three, or two into two each
+}
+
+TEST_CASE("untangle_gaps leaves a gap alone when untangling it would drop a point",
+          "[recon][fill]") {
+  // The frame of the crossing test with a sheet through its hole: removing the sheet's two
+  // triangles would close the hole but leave the sheet's four points out of the mesh.
+  Mesh m;
+  m.vertices = {Vec3(-2, -2, 0), Vec3(2, -2, 0), Vec3(2, 2, 0), Vec3(-2, 2, 0),
+                Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(1, 1, 0), Vec3(-1, 1, 0),
+                Vec3(0, -0.5, -1), Vec3(0, 0.5, -1), Vec3(0, 0.5, 1), Vec3(0, -0.5, 1)};
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    const std::uint32_t o0 = k, o1 = (k + 1) % 4, i0 = 4 + k, i1 = 4 + (k + 1) % 4;
+    m.triangles.push_back({o0, o1, i1});
+    m.triangles.push_back({o0, i1, i0});
+  }
+  m.triangles.push_back({8, 9, 10});
+  m.triangles.push_back({8, 10, 11});
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  FillOptions opt;
+  opt.max_edges = 4;
+  opt.refine = false;
+  const FillStats first = fill_holes(m, opt, spacing);
+  CHECK(first.crossing == 3);
+  CHECK_FALSE(first.crossed.empty());
+  const Mesh before = m;
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, opt, spacing, first);
+  CHECK(u.removed == 0);
+  CHECK(u.closed == 0);
+  CHECK(m.triangles == before.triangles);
+  CHECK(m.vertices.size() == before.vertices.size());
+}

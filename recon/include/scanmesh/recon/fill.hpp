@@ -39,6 +39,9 @@ struct FillStats {
   std::size_t triangles = 0;  ///< triangles added
   std::size_t vertices = 0;   ///< vertices added (inside the patches, by the refinement)
   std::size_t faired = 0;     ///< patches faired (the others keep their refined, flat shape)
+  /// For each loop kept open as `crossing`: the mesh triangles (indices into the triangles as
+  /// they were before the call, ascending) that its flattest patch would cross.
+  std::vector<std::vector<std::uint32_t>> crossed;
 };
 
 /// Closes the boundary loops of `mesh` with at most `options.max_edges` edges. The patch is
@@ -51,5 +54,26 @@ struct FillStats {
 /// options.max_perimeter_spacings > 0, and must then cover every vertex (std::invalid_argument).
 FillStats fill_holes(Mesh& mesh, const FillOptions& options,
                      std::span<const float> vertex_spacing = {});
+
+struct UntangleStats {
+  std::size_t removed = 0;     ///< mesh triangles removed
+  std::size_t closed = 0;      ///< boundary loops fewer than before
+  std::size_t reinserted = 0;  ///< vertices the removal stranded, put back into a patch
+};
+
+/// A sampling gap that stays open because its patch would cross the mesh is often a gap that a
+/// few wrong triangles reach through: across a wall thinner than about two spacings, the front
+/// meshed a point of one face, lying in the gap, with the other face (a spike through the gap).
+/// untangle_gaps removes the mesh triangles that a gap's flattest patch crosses (`first.crossed`,
+/// from the fill_holes call that left it open, with the same options and spacing), closes the
+/// loops that leaves with fill_holes, and puts each vertex the removal stranded back where it
+/// lies (within a quarter of its spacing of the plane): into a patch triangle, split in three,
+/// or into one of its edges, split with the triangles on both sides. Gap by gap, the result is
+/// kept only when it is manifold and consistently oriented, has fewer boundary loops and as many
+/// components, uses every vertex the mesh used, and nothing new crosses the mesh; otherwise that
+/// gap stays as it is. A gap whose patch crosses more than 2 * options.max_edges triangles is
+/// left alone. The genus can change (a spike across a wall is a handle).
+UntangleStats untangle_gaps(Mesh& mesh, const FillOptions& options,
+                            std::span<const float> vertex_spacing, const FillStats& first);
 
 }  // namespace scanmesh::recon

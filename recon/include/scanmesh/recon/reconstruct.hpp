@@ -37,6 +37,9 @@ struct ReconstructOptions {
   /// vertices (the minimum-weight patch of fill.hpp, never crossing the mesh). Off only for
   /// comparison.
   bool close_gaps = true;
+  /// Those gaps that stay open because their patch would cross the mesh are untangled where a
+  /// few triangles reach through them (fill.hpp: untangle_gaps). Off only for comparison.
+  bool untangle_gaps = true;
   /// Off by default: real holes stay open. On request, small loops are closed at the end.
   FillOptions fill;
   /// Reports every bad field at once (empty when valid).
@@ -53,6 +56,8 @@ struct ReconstructResult {
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
   RefineStats refine;  ///< points the front left out that were inserted afterwards
   FillStats gaps;      ///< sampling gaps closed at the end (options.close_gaps)
+  /// Gaps left open because their patch would cross the mesh, untangled (fill.hpp).
+  UntangleStats untangle;
   FillStats fill;      ///< holes closed on request (options.fill)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
   /// Front edge evaluations not run: known to find no candidate (cost counter).
