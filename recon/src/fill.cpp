@@ -635,8 +635,8 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
 
 namespace {
 
-/// One loop's untangling (see untangle_gaps): false, and `mesh` unchanged, when it does not help.
-bool untangle_one(Mesh& mesh, const FillOptions& options, std::span<const float> vertex_spacing,
+/// One gap's untangling (see untangle_gaps): `mesh` and `st` unchanged when it does not help.
+void untangle_one(Mesh& mesh, const FillOptions& options, std::span<const float> vertex_spacing,
                   std::span<const std::uint32_t> crossed, UntangleStats& st) {
   Mesh trial;
   trial.vertices = mesh.vertices;
@@ -731,12 +731,11 @@ bool untangle_one(Mesh& mesh, const FillOptions& options, std::span<const float>
       !after.orientation_consistent || after.boundary_loops >= before.boundary_loops ||
       after.components != before.components || reinserted < stranded.size() ||
       find_self_intersections(trial, 1, unchanged).pairs > 0)
-    return false;
+    return;
   st.removed += crossed.size();
   st.closed += before.boundary_loops - after.boundary_loops;
   st.reinserted += reinserted;
   mesh = std::move(trial);
-  return true;
 }
 
 }  // namespace
