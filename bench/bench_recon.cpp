@@ -148,6 +148,11 @@ struct Figures {
   // Seconds. read is NaN for generated inputs (gen holds the generation time instead).
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
          refine_s = kNaN, output_s = kNaN, gaps_s = kNaN, total_s = kNaN;
+  /// The front's steps (advance_front's observer names, without "front/"), seconds each.
+  static constexpr std::string_view kFrontSteps[] = {"setup",   "turning",   "bulk",
+                                                     "growth",  "repairs",   "fan check",
+                                                     "orientation"};
+  double front_step_s[std::size(kFrontSteps)] = {};
   std::size_t closed_gaps = 0;  ///< sampling gaps closed by the reconstruction (stage "gaps")
   std::size_t inserted = 0, slivers = 0, sliver_flips = 0;
   // Hole filling on request (after the measured reconstruction, on its mesh): every loop of at
@@ -277,8 +282,20 @@ Figures run_once(const Case& c, bool& available) {
                                                   "output", "gaps",    "done"};
   Clock::time_point marks[std::size(kStages)];
   bool seen[std::size(kStages)] = {};
+  // The front's steps: each runs until the next call of the observer.
+  constexpr std::size_t kNoStep = std::size(Figures::kFrontSteps);
+  std::size_t step = kNoStep;
+  Clock::time_point step_start;
   const recon::StageObserver observer = [&](std::string_view stage) {
     const auto now = Clock::now();
+    if (step != kNoStep) f.front_step_s[step] += seconds_between(step_start, now);
+    step = kNoStep;
+    if (stage.starts_with("front/")) {
+      for (std::size_t i = 0; i < kNoStep; ++i)
+        if (stage.substr(6) == Figures::kFrontSteps[i]) step = i;
+      step_start = now;
+      return;
+    }
     for (std::size_t i = 0; i < std::size(kStages); ++i)
       if (stage == kStages[i]) {
         marks[i] = now;
@@ -356,6 +373,9 @@ void keep_best(Figures& best, const Figures& f, bool first) {
   best.gen_s = min_nan(best.gen_s, f.gen_s);
   best.reduce_s = min_nan(best.reduce_s, f.reduce_s);
   best.normals_s = min_nan(best.normals_s, f.normals_s);
+  // The steps of the fastest front, so that they add up to its time.
+  if (f.front_s < best.front_s)
+    std::copy(std::begin(f.front_step_s), std::end(f.front_step_s), std::begin(best.front_step_s));
   best.front_s = min_nan(best.front_s, f.front_s);
   best.refine_s = min_nan(best.refine_s, f.refine_s);
   best.output_s = min_nan(best.output_s, f.output_s);
@@ -475,6 +495,10 @@ void print_row(const Outcome& o) {
       red > 0 ? static_cast<double>(f.points_scanned) / red : kNaN,
       static_cast<double>(f.peak_case_bytes) / (1024.0 * 1024.0));
   if (!std::isnan(f.gen_s)) std::printf("; generated (not read) in %s ms", fmt_ms(f.gen_s).c_str());
+  std::printf("\n%-13s   front steps, ms:", "");
+  for (std::size_t i = 0; i < std::size(Figures::kFrontSteps); ++i)
+    std::printf("%s %.*s %s", i == 0 ? "" : ",", static_cast<int>(Figures::kFrontSteps[i].size()),
+                Figures::kFrontSteps[i].data(), fmt_ms(f.front_step_s[i]).c_str());
   std::printf("\n%-13s   hole filling on request (loops up to %zu edges, after the above): %s ms, "
               "%zu of %zu loops closed (%zu faired), %zu new vertices\n",
               "", recon::FillOptions::kLimit, fmt_ms(f.fill_s).c_str(), f.filled, f.loops,
@@ -509,6 +533,10 @@ std::string json_line(const Outcome& o, int repeat) {
   s += ",\"normals_ms\":" + json_ms(f.normals_s) +
        ",\"normals_pts_per_s\":" + json_rate(red, f.normals_s);
   s += ",\"front_ms\":" + json_ms(f.front_s) + ",\"front_pts_per_s\":" + json_rate(red, f.front_s);
+  s += ",\"front_steps_ms\":{";
+  for (std::size_t i = 0; i < std::size(Figures::kFrontSteps); ++i)
+    s += (i == 0 ? "\"" : ",\"") + std::string(Figures::kFrontSteps[i]) + "\":" + json_ms(f.front_step_s[i]);
+  s += "}";
   s += ",\"insertion_ms\":" + json_ms(f.refine_s) + ",\"inserted_points\":" + std::to_string(f.inserted);
   s += ",\"output_ms\":" + json_ms(f.output_s);
   s += ",\"gaps_ms\":" + json_ms(f.gaps_s) + ",\"closed_gaps\":" + std::to_string(f.closed_gaps);

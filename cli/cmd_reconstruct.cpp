@@ -148,9 +148,20 @@ int run_reconstruct(const ReconstructArgs& args) {
   report("read " + std::to_string(points.size()) + " points");
   std::map<std::string, double> seconds;
   seconds["read"] = std::chrono::duration<double>(last - t0).count();
-  std::string current;
+  // Steps within a stage ("front/growth") are timed on their own and count into their stage.
+  std::map<std::string, double> step_seconds;
+  std::string current, current_step;
+  auto step_start = last;
   auto observer = [&](std::string_view stage) {
     const auto now = Clock::now();
+    if (!current_step.empty())
+      step_seconds[current_step] += std::chrono::duration<double>(now - step_start).count();
+    current_step.clear();
+    step_start = now;
+    if (stage.find('/') != std::string_view::npos) {  // --progress shows the stages only
+      current_step = stage;
+      return;
+    }
     if (!current.empty()) seconds[current] += std::chrono::duration<double>(now - last).count();
     last = now;
     current = stage == "done" ? "" : std::string(stage);
@@ -220,6 +231,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     if (!args.preview.empty()) j["preview"] = args.preview;
     j["seconds_total"] = total;
     j["seconds"] = seconds;
+    j["step_seconds"] = step_seconds;
     std::cout << j.dump() << "\n";
   } else {
     std::cout << std::fixed << std::setprecision(3);

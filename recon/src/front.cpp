@@ -246,8 +246,10 @@ bool segments_meet(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q
 class Builder {
  public:
   Builder(std::span<const Vec3> pts, const LocalFrames& frames, const PointGrid& grid,
-          const FrontOptions& opt)
-      : p_(pts), f_(frames), grid_(grid), opt_(opt), edges_map_(pts.size() * 3) {
+          const FrontOptions& opt, const StageObserver& observer)
+      : p_(pts), f_(frames), grid_(grid), opt_(opt), observer_(observer),
+        edges_map_(pts.size() * 3) {
+    step("front/setup");
     const std::size_t n = pts.size();
     state_.assign(n, VertexState::kFree);
     slot_state_.assign(n, VertexState::kFree);
@@ -276,6 +278,7 @@ class Builder {
       clear_ = std::min(8.0 * 0x1.0p-24 * extent, 1e-3 * static_cast<double>(*mid));
     }
     if (opt_.crossing_guard) {
+      step("front/turning");
       mark_turning_points();
       corner_head_.assign(n, kNone);
       slot_listed_.assign(n, 0);
@@ -644,6 +647,7 @@ class Builder {
   const LocalFrames& f_;
   const PointGrid& grid_;
   const FrontOptions& opt_;
+  const StageObserver& observer_;  // hears the steps (advance_front)
   std::vector<VertexState> state_;
   /// Free points under a triangle (cover_free_points): never a candidate again.
   std::vector<std::uint8_t> covered_;
@@ -689,6 +693,9 @@ class Builder {
       for (FrontEdge& e : edges_) e.no_candidate = 0;
       candidate_gen_ = 1;
     }
+  }
+  void step(std::string_view name) const {
+    if (observer_) observer_(name);
   }
 #ifndef NDEBUG
   bool check_every_step_ = true;
@@ -2142,6 +2149,7 @@ void Builder::grow_from_bulk() {
   bo.max_valence = opt_.max_valence;
   bo.max_patch_points = opt_.bulk_patch_points;
   bo.patch_cone_deg = opt_.bulk_patch_cone_deg;
+  step("front/bulk");
   detail::BulkStats stats;
   detail::BulkMesh bulk;
   bulk.triangles.swap(tris_);  // empty, with the storage reserved for the whole mesh
@@ -2165,12 +2173,14 @@ void Builder::grow_from_bulk() {
   for (const auto& [u, w] : bulk.border_chords) edges_map_.insert(u, w, kInterior);
   start_front();  // the bulk leaves every vertex one fan
   if (check_every_step_) check_front();
+  step("front/growth");
   grow();
 }
 
 FrontResult Builder::run() {
   const std::size_t n = p_.size();
   if (opt_.bulk) grow_from_bulk();
+  step("front/growth");  // the seeds' (and, without the bulk, all of it)
   // Seeds, among the points still free (states only move forward while the front grows):
   // flattest first, index breaking ties, so the order is deterministic. A stable two-pass radix
   // sort on the bits of the flatness (non-negative floats order like their bit patterns; -0 is
@@ -2201,6 +2211,7 @@ FrontResult Builder::run() {
     if (try_seed(s)) grow();
   }
   std::vector<std::uint32_t>().swap(order);
+  step("front/repairs");
   // Close sampling gaps, then keep vertices manifold; repairs can open small gaps again, so
   // one more round of each.
   fill_small_loops();
@@ -2222,6 +2233,7 @@ FrontResult Builder::run() {
   // closed by ear clipping; one that survives two such rounds stays a small boundary loop. The
   // edge table is freed first: this check's vertex lists would otherwise sit on top of it at
   // the peak of the whole reconstruction.
+  step("front/fan check");
   for (int round = 0; round < 3; ++round) {
     edges_map_ = EdgeMap(0);
     if (repair_fans(true) == 0) break;
@@ -2231,6 +2243,7 @@ FrontResult Builder::run() {
   if (check_every_step_) check_bulk_fans();
   if (front_stale_) rebuild_front();  // a slit closed above: the states and the orientation read it
   edges_map_ = EdgeMap(0);  // not needed any more
+  step("front/orientation");
   {
     // Components can only cross when there are several; the orientation pass needs them too.
     detail::TriangleComponents components(n, tris_);
@@ -2283,8 +2296,9 @@ std::vector<std::string> FrontOptions::validate() const {
 }
 
 FrontResult advance_front(std::span<const Vec3> points, const LocalFrames& frames,
-                          const PointGrid& grid, const FrontOptions& options) {
-  Builder b(points, frames, grid, options);
+                          const PointGrid& grid, const FrontOptions& options,
+                          const StageObserver& observer) {
+  Builder b(points, frames, grid, options, observer);
   return b.run();
 }
 

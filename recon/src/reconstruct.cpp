@@ -193,7 +193,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     res.reduced_points = reduced.size();
 
     stage("front");
-    fr = advance_front(reduced, frames, grid, options.front);
+    fr = advance_front(reduced, frames, grid, options.front, observer);
 
     stage("refine");
     res.refine = insert_unused_points(reduced, frames, grid, fr, options.refine);

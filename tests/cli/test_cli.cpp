@@ -181,6 +181,19 @@ TEST_CASE("reconstruct a generated sphere: JSON figures and a closed mesh", "[cl
     CHECK(j["seconds"].contains(stage));
     if (j["seconds"].contains(stage)) CHECK(j["seconds"][stage].get<double>() >= 0);
   }
+  // The front's steps, timed within its stage: together no longer than it.
+  REQUIRE(j["step_seconds"].is_object());
+  double steps = 0;
+  for (const char* step : {"front/setup", "front/turning", "front/bulk", "front/growth",
+                           "front/repairs", "front/fan check", "front/orientation"}) {
+    INFO(step);
+    REQUIRE(j["step_seconds"].contains(step));
+    CHECK(j["step_seconds"][step].get<double>() >= 0);
+    steps += j["step_seconds"][step].get<double>();
+  }
+  CHECK(j["step_seconds"].size() == 7);
+  CHECK(steps > 0);
+  CHECK(steps <= j["seconds"]["front"].get<double>() + 1e-9);
   const scanmesh::recon::Mesh mesh = scanmesh::meshio::read_mesh(stl);
   CHECK(mesh.triangles.size() == j["triangles"].get<std::size_t>());
   CHECK(mesh.vertices.size() == j["vertices"].get<std::size_t>());

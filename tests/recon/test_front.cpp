@@ -319,6 +319,24 @@ TEST_CASE("reconstruction is deterministic", "[recon]") {
   CHECK(a.mesh.vertices == b.mesh.vertices);
 }
 
+TEST_CASE("the observer hears the stages and the front's steps in order; the mesh is the same",
+          "[recon]") {
+  const auto pts = test::sphere_points(6000, 10.0);
+  std::vector<std::string> heard;
+  const auto observed = reconstruct(pts, ReconstructOptions{}, [&](std::string_view stage) {
+    if (heard.empty() || heard.back() != stage) heard.emplace_back(stage);  // growth comes twice
+  });
+  const std::vector<std::string> expected{
+      "reduce",       "normals",       "front",           "front/setup",
+      "front/turning", "front/bulk",   "front/growth",    "front/repairs",
+      "front/fan check", "front/orientation", "refine",   "output",
+      "done"};
+  CHECK(heard == expected);
+  const auto plain = reconstruct(pts);
+  CHECK(observed.mesh.triangles == plain.mesh.triangles);
+  CHECK(observed.mesh.vertices == plain.mesh.vertices);
+}
+
 TEST_CASE("degenerate inputs give clear errors", "[recon]") {
   using Catch::Matchers::Contains;
   const std::vector<Vec3> empty;

@@ -4,7 +4,9 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
+#include <string_view>
 #include <string>
 #include <vector>
 
@@ -106,9 +108,19 @@ struct FrontResult {
   double spacing_cap = 0;
 };
 
+/// Called with the name of each stage (or step of a stage) as it starts; the core keeps no
+/// clock, the caller times what it wants.
+using StageObserver = std::function<void(std::string_view stage)>;
+
 /// Triangulates `points` (with `frames` from estimate_frames and `grid` indexing the points
-/// with a cell of about 3.6x the median local spacing). Deterministic.
+/// with a cell of about 3.6x the median local spacing). Deterministic. `observer`, when given,
+/// hears the front's steps as they start: "front/setup", "front/turning" (the crossing guard's
+/// turning points), "front/bulk" (the planar Delaunay patches), "front/growth" (the front
+/// itself, from the bulk's border and from seeds), "front/repairs" (sampling gaps and fan
+/// repairs, with the growth they restart), "front/fan check" (every vertex one fan) and
+/// "front/orientation" (components, orientation, final states).
 FrontResult advance_front(std::span<const Vec3> points, const LocalFrames& frames,
-                          const PointGrid& grid, const FrontOptions& options = {});
+                          const PointGrid& grid, const FrontOptions& options = {},
+                          const StageObserver& observer = {});
 
 }  // namespace scanmesh::recon

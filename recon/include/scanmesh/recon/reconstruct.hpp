@@ -69,10 +69,11 @@ struct ReconstructResult {
   std::size_t dropped_components = 0;
 };
 
-/// Called with the name of each stage when it starts ("reduce", "normals", "front", "refine",
-/// "output", "gaps" when sampling gaps are closed, and "fill" when holes are to be closed) and
-/// with "done" at the end.
-using StageObserver = std::function<void(std::string_view stage)>;
+/// reconstruct() calls its StageObserver (front.hpp) with the name of each stage when it starts
+/// ("reduce", "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, and
+/// "fill" when holes are to be closed) and with "done" at the end. Steps within a stage carry
+/// the stage's name and a slash ("front/growth", see advance_front): a caller that times stages
+/// only counts them into the stage.
 
 /// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,
 /// fewer than 3 distinct points, non-finite coordinates, all points collinear.
