@@ -470,7 +470,7 @@ class Builder {
   /// vertices' summed normals is at most this (measured: the bunny's holes -0.69 to -0.95,
   /// raw scans' borders +0.96 to +1; the unscanned tops of rotary scans about -0.6).
   static constexpr double kHoleWinding = -0.3;
-  /// Triangulates the bulk (bulk.hpp) and grows the front from its borders.
+  /// Triangulates the bulk (bulk.hpp) and loads the front along its borders (run grows it).
   void grow_from_bulk();
   /// Whether the m triangles `ids` around v form one fan, walking across shared edges in the
   /// orientation of the first (false: not shown this way, which proves nothing).
@@ -2173,14 +2173,13 @@ void Builder::grow_from_bulk() {
   for (const auto& [u, w] : bulk.border_chords) edges_map_.insert(u, w, kInterior);
   start_front();  // the bulk leaves every vertex one fan
   if (check_every_step_) check_front();
-  step("front/growth");
-  grow();
 }
 
 FrontResult Builder::run() {
   const std::size_t n = p_.size();
   if (opt_.bulk) grow_from_bulk();
-  step("front/growth");  // the seeds' (and, without the bulk, all of it)
+  step("front/growth");
+  grow();  // from the bulk's border (without the bulk there is no front yet)
   // Seeds, among the points still free (states only move forward while the front grows):
   // flattest first, index breaking ties, so the order is deterministic. A stable two-pass radix
   // sort on the bits of the flatness (non-negative floats order like their bit patterns; -0 is
