@@ -148,11 +148,12 @@ struct Figures {
   // Seconds. read is NaN for generated inputs (gen holds the generation time instead).
   double read_s = kNaN, gen_s = kNaN, reduce_s = kNaN, normals_s = kNaN, front_s = kNaN,
          refine_s = kNaN, output_s = kNaN, gaps_s = kNaN, total_s = kNaN;
-  /// The front's steps (advance_front's observer names, without "front/"), seconds each.
-  static constexpr std::string_view kFrontSteps[] = {"setup",   "turning",   "bulk",
-                                                     "growth",  "repairs",   "fan check",
-                                                     "orientation"};
-  double front_step_s[std::size(kFrontSteps)] = {};
+  /// The front's steps as the observer names them (without "front/"), in order, seconds each.
+  struct Step {
+    char name[24];  // cut to fit
+    double seconds;
+  };
+  std::vector<Step> front_steps;
   std::size_t closed_gaps = 0;  ///< sampling gaps closed by the reconstruction (stage "gaps")
   std::size_t inserted = 0, slivers = 0, sliver_flips = 0;
   // Hole filling on request (after the measured reconstruction, on its mesh): every loop of at
@@ -283,16 +284,16 @@ Figures run_once(const Case& c, bool& available) {
   Clock::time_point marks[std::size(kStages)];
   bool seen[std::size(kStages)] = {};
   // The front's steps: each runs until the next call of the observer.
-  constexpr std::size_t kNoStep = std::size(Figures::kFrontSteps);
-  std::size_t step = kNoStep;
+  bool in_step = false;
   Clock::time_point step_start;
+  f.front_steps.reserve(16);  // no allocation inside the measured call
   const recon::StageObserver observer = [&](std::string_view stage) {
     const auto now = Clock::now();
-    if (step != kNoStep) f.front_step_s[step] += seconds_between(step_start, now);
-    step = kNoStep;
-    if (stage.starts_with("front/")) {
-      for (std::size_t i = 0; i < kNoStep; ++i)
-        if (stage.substr(6) == Figures::kFrontSteps[i]) step = i;
+    if (in_step) f.front_steps.back().seconds = seconds_between(step_start, now);
+    in_step = stage.starts_with("front/");
+    if (in_step) {
+      Figures::Step& s = f.front_steps.emplace_back(Figures::Step{{}, 0.0});
+      stage.substr(6).copy(s.name, sizeof s.name - 1);
       step_start = now;
       return;
     }
@@ -375,7 +376,7 @@ void keep_best(Figures& best, const Figures& f, bool first) {
   best.normals_s = min_nan(best.normals_s, f.normals_s);
   // The steps of the fastest front, so that they add up to its time.
   if (f.front_s < best.front_s)
-    std::copy(std::begin(f.front_step_s), std::end(f.front_step_s), std::begin(best.front_step_s));
+    best.front_steps = f.front_steps;
   best.front_s = min_nan(best.front_s, f.front_s);
   best.refine_s = min_nan(best.refine_s, f.refine_s);
   best.output_s = min_nan(best.output_s, f.output_s);
@@ -496,9 +497,9 @@ void print_row(const Outcome& o) {
       static_cast<double>(f.peak_case_bytes) / (1024.0 * 1024.0));
   if (!std::isnan(f.gen_s)) std::printf("; generated (not read) in %s ms", fmt_ms(f.gen_s).c_str());
   std::printf("\n%-13s   front steps, ms:", "");
-  for (std::size_t i = 0; i < std::size(Figures::kFrontSteps); ++i)
-    std::printf("%s %.*s %s", i == 0 ? "" : ",", static_cast<int>(Figures::kFrontSteps[i].size()),
-                Figures::kFrontSteps[i].data(), fmt_ms(f.front_step_s[i]).c_str());
+  for (std::size_t i = 0; i < f.front_steps.size(); ++i)
+    std::printf("%s %s %s", i == 0 ? "" : ",", f.front_steps[i].name,
+                fmt_ms(f.front_steps[i].seconds).c_str());
   std::printf("\n%-13s   hole filling on request (loops up to %zu edges, after the above): %s ms, "
               "%zu of %zu loops closed (%zu faired), %zu new vertices\n",
               "", recon::FillOptions::kLimit, fmt_ms(f.fill_s).c_str(), f.filled, f.loops,
@@ -534,8 +535,9 @@ std::string json_line(const Outcome& o, int repeat) {
        ",\"normals_pts_per_s\":" + json_rate(red, f.normals_s);
   s += ",\"front_ms\":" + json_ms(f.front_s) + ",\"front_pts_per_s\":" + json_rate(red, f.front_s);
   s += ",\"front_steps_ms\":{";
-  for (std::size_t i = 0; i < std::size(Figures::kFrontSteps); ++i)
-    s += (i == 0 ? "\"" : ",\"") + std::string(Figures::kFrontSteps[i]) + "\":" + json_ms(f.front_step_s[i]);
+  for (std::size_t i = 0; i < f.front_steps.size(); ++i)
+    s += (i == 0 ? "\"" : ",\"") + std::string(f.front_steps[i].name) + "\":" +
+         json_ms(f.front_steps[i].seconds);
   s += "}";
   s += ",\"insertion_ms\":" + json_ms(f.refine_s) + ",\"inserted_points\":" + std::to_string(f.inserted);
   s += ",\"output_ms\":" + json_ms(f.output_s);
