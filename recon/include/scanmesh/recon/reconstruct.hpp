@@ -69,14 +69,13 @@ struct ReconstructResult {
   std::size_t dropped_components = 0;
 };
 
-/// reconstruct() calls its StageObserver (front.hpp) with the name of each stage when it starts
-/// ("reduce", "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, and
-/// "fill" when holes are to be closed) and with "done" at the end. Steps within a stage carry
-/// the stage's name and a slash ("front/growth", see advance_front): a caller that times stages
-/// only counts them into the stage.
-
 /// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,
 /// fewer than 3 distinct points, non-finite coordinates, all points collinear.
+/// `observer` (StageObserver, front.hpp) hears the name of each stage when it starts ("reduce",
+/// "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, and "fill" when
+/// holes are to be closed) and "done" at the end. Steps within a stage carry the stage's name
+/// and a slash ("front/growth", see advance_front): a caller that times stages only counts them
+/// into the stage.
 /// `towards_sensor` (empty, or one per point): a vector from each point towards the sensor that
 /// measured it; each part of the surface then faces its sensors (estimate_frames). Closed parts
 /// face outward either way.
