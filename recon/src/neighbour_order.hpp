@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <iterator>
@@ -28,17 +29,22 @@ class NeighbourOrder {
  public:
   static constexpr std::uint32_t kBuckets = 64;
 
-  /// Sorts in[0, n) into out[0, n); max_d2 > 0.
+  /// Sorts in[0, n) into out[0, n); max_d2 > 0. As many buckets as neighbours, up to kBuckets
+  /// (the prefix sum over 64 buckets was a third of the sort for the usual 20-30 neighbours);
+  /// the result does not depend on the bucket count.
   void sort(const Neighbour* in, std::size_t n, double max_d2, Neighbour* out) {
-    const double scale = static_cast<double>(kBuckets) / max_d2;
+    const std::uint32_t buckets = n >= kBuckets ? kBuckets
+                                                : std::max<std::uint32_t>(
+                                                      4, std::bit_ceil(static_cast<std::uint32_t>(n)));
+    const double scale = static_cast<double>(buckets) / max_d2;
     bucket_of_.resize(n);
-    std::fill(std::begin(start_), std::end(start_), 0u);
+    std::fill(start_, start_ + buckets + 1, 0u);
     for (std::size_t a = 0; a < n; ++a) {
-      const auto b = std::min(kBuckets - 1, static_cast<std::uint32_t>(in[a].d2 * scale));
+      const auto b = std::min(buckets - 1, static_cast<std::uint32_t>(in[a].d2 * scale));
       bucket_of_[a] = b;
       ++start_[b + 1];
     }
-    for (std::uint32_t b = 0; b < kBuckets; ++b) start_[b + 1] += start_[b];
+    for (std::uint32_t b = 0; b < buckets; ++b) start_[b + 1] += start_[b];
     for (std::size_t a = 0; a < n; ++a) out[start_[bucket_of_[a]]++] = in[a];
     for (std::size_t a = 1; a < n; ++a) {
       if (!out[a].before(out[a - 1])) continue;

@@ -176,7 +176,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
         views.swap(sorted);
       }
     }
-    grid.build(reduced, 2.5 * std::max(typical, 1e-12));
+    grid.renumber_in_order();
     const LocalFrames frames = estimate_frames(reduced, grid, options.normals, views);
     std::vector<Vec3>().swap(views);
     // Re-grid with the measured local spacing so that one ring of cells covers the front's scan

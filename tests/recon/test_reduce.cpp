@@ -538,3 +538,30 @@ TEST_CASE("PointGrid visits every point within the cell radius, in cell order", 
     }
   }
 }
+
+TEST_CASE("PointGrid::renumber_in_order is the grid built on the points permuted into its order",
+          "[recon]") {
+  std::vector<Vec3> bar = random_box(2000, 4.0, 21);
+  for (Vec3& p : bar) p.x() *= 1000.0;
+  const std::vector<std::pair<std::vector<Vec3>, double>> clouds = {
+      {random_box(2000, 10.0, 20), 0.7}, {bar, 0.7}, {sparse_clusters(80, 5, 3000.0, 2.0, 22), 1.0}};
+  for (const auto& [pts, cell] : clouds) {
+    recon::PointGrid grid;
+    grid.build(pts, cell);
+    std::vector<Vec3> sorted(pts.size());
+    for (std::size_t s = 0; s < pts.size(); ++s) sorted[s] = pts[grid.order()[s]];
+    grid.renumber_in_order();
+    recon::PointGrid fresh;
+    fresh.build(sorted, cell);
+    REQUIRE(grid.order() == fresh.order());
+    for (std::size_t s = 0; s < pts.size(); ++s) REQUIRE(grid.order()[s] == s);
+    // Same answers to the queries on the permuted points.
+    for (std::size_t q = 0; q < sorted.size(); q += 97) {
+      std::vector<std::uint32_t> a, b;
+      grid.for_each_near(sorted[q], 1, [&](std::uint32_t j) { a.push_back(j); });
+      fresh.for_each_near(sorted[q], 1, [&](std::uint32_t j) { b.push_back(j); });
+      REQUIRE(a == b);
+      REQUIRE(!a.empty());
+    }
+  }
+}

@@ -31,6 +31,13 @@ class PointGrid {
   /// stay alive and unchanged while the grid is queried.
   void build(std::span<const Vec3> points, double cell);
 
+  /// After the caller has permuted its points into `order()` (new point s = old order()[s]):
+  /// the grid of the permuted points, as build() with the same cell would make it (its order
+  /// is then the identity: cells in key order, points of a cell by index), without rebuilding.
+  void renumber_in_order() {
+    for (std::size_t s = 0; s < order_.size(); ++s) order_[s] = static_cast<std::uint32_t>(s);
+  }
+
   [[nodiscard]] double cell() const { return cell_; }
   [[nodiscard]] bool empty() const { return order_.empty(); }
 
