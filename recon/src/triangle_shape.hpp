@@ -32,9 +32,14 @@ struct TriangleBounds {
         reach(std::sqrt(std::max({(a - centre).squaredNorm(), (b - centre).squaredNorm(),
                                   (c - centre).squaredNorm()}))) {}
   /// Whether the box of triangle (a, b, c) misses this one's (then the two cannot meet).
+  /// Axis by axis, stopping at the first that separates (most triangles of a crossing search
+  /// are out on the first axis; the vectorised form computed all six bounds first).
   [[nodiscard]] bool box_misses(const Vec3& a, const Vec3& b, const Vec3& c) const {
-    return ((a.cwiseMin(b).cwiseMin(c) - hi).array() > 0).any() ||
-           ((lo - a.cwiseMax(b).cwiseMax(c)).array() > 0).any();
+    for (int k = 0; k < 3; ++k) {
+      if (std::min({a[k], b[k], c[k]}) > hi[k]) return true;
+      if (std::max({a[k], b[k], c[k]}) < lo[k]) return true;
+    }
+    return false;
   }
 };
 
