@@ -708,33 +708,27 @@ class Builder {
   static constexpr std::size_t kCheckAllUpTo = 60000;
   static constexpr std::size_t kCheckSlotsUpTo = 8000;
   std::uint32_t steps_ = 0;
-  // scratch buffers reused by every query (no allocation on the hot path once warmed up)
-  /// A list filled by the candidate scan: room is made once per cell range (reserve_more),
-  /// then every item is written without a capacity check. (std::vector::push_back stayed an
+  /// Point ids listed by the candidate scan: room is made once per cell range (reserve_more),
+  /// then every id is written without a capacity check. (std::vector::push_back stayed an
   /// out-of-line call there: 18M of the bunny's 480M instructions in the growth.)
-  template <class T>
-  class ScanList {
+  class IdList {
    public:
     void clear() { n_ = 0; }
     void reserve_more(std::size_t extra) {
-      if (buf_.size() < n_ + extra) buf_.resize(2 * (n_ + extra));
+      if (ids_.size() < n_ + extra) ids_.resize(2 * (n_ + extra));
     }
-    void put(const T& item) { buf_[n_++] = item; }  // after reserve_more
-    [[nodiscard]] bool empty() const { return n_ == 0; }
-    [[nodiscard]] std::size_t size() const { return n_; }
-    [[nodiscard]] T* begin() { return buf_.data(); }
-    [[nodiscard]] T* end() { return buf_.data() + n_; }
-    [[nodiscard]] const T* begin() const { return buf_.data(); }
-    [[nodiscard]] const T* end() const { return buf_.data() + n_; }
-    const T& operator[](std::size_t i) const { return buf_[i]; }
+    void put(std::uint32_t id) { ids_[n_++] = id; }  // after reserve_more
+    [[nodiscard]] const std::uint32_t* begin() const { return ids_.data(); }
+    [[nodiscard]] const std::uint32_t* end() const { return ids_.data() + n_; }
 
    private:
-    std::vector<T> buf_;
+    std::vector<std::uint32_t> ids_;
     std::size_t n_ = 0;
   };
+  // scratch buffers reused by every query (no allocation on the hot path once warmed up)
   std::vector<Candidate> cand_;
-  ScanList<std::uint32_t> near_front_;
-  ScanList<std::uint32_t> near_free_;  // the free points of the current edge's scan
+  IdList near_front_;
+  IdList near_free_;  // the free points of the current edge's scan
   double cos_normal_ = 1.0;  // cosine of max_normal_deviation_deg
   double clear_ = 0;         // distance under which the front-edge tests count touching
   FrontResult res_;

@@ -176,7 +176,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
         views.swap(sorted);
       }
     }
-    grid.renumber_in_order();
+    grid.renumber_in_order();  // the grid of the sorted points (no second build)
     const LocalFrames frames = estimate_frames(reduced, grid, options.normals, views);
     std::vector<Vec3>().swap(views);
     // Re-grid with the measured local spacing so that one ring of cells covers the front's scan
