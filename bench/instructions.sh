@@ -51,14 +51,14 @@ valgrind --tool=callgrind --callgrind-out-file="$work/cg.out" \
   exit 1
 }
 reduced=$(grep -o '"reduced_points": *[0-9]*' "$work/summary.json" | grep -o '[0-9]*$')
-callgrind_annotate --inclusive=yes "$work/cg.out" 2>/dev/null >"$work/inclusive.txt"
+callgrind_annotate --inclusive=yes --threshold=100 "$work/cg.out" 2>/dev/null >"$work/inclusive.txt"
 
 # stage label, then the start of its function's name (the first, largest, line that matches
 # is the function itself; its lambdas follow with smaller counts)
 stages=(
   "reconstruct (all)|scanmesh::recon::reconstruct("
   "  spacing estimate|scanmesh::recon::estimate_spacing("
-  "  cube reduction|scanmesh::recon::cube_reduce_thin("
+  "  cube reduction|scanmesh::recon::cube_reduce"
   "  projection|scanmesh::recon::project_to_local_planes("
   "  normals|scanmesh::recon::estimate_frames("
   "  front|scanmesh::recon::advance_front("
