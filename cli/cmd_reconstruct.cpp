@@ -202,6 +202,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["triangles"] = res.mesh.triangles.size();
     put_topology(j, rep);
     j["outliers"] = res.outliers.size();
+    j["far_points"] = res.far_points;
     j["cube"] = res.cube_mm;
     j["spacing"] = {{"nearest", res.spacing.nearest_mm},
                     {"cross", res.spacing.cross_mm},
@@ -258,7 +259,11 @@ int run_reconstruct(const ReconstructArgs& args) {
                 << " loops kept, " << res.fill.crossing
                 << " of them because a patch would cross the mesh)\n";
     std::cout
-              << "outliers         " << res.outliers.size() << "\n"
+              << "outliers         " << res.outliers.size()
+              << (res.far_points > 0 ? " (" + std::to_string(res.far_points) +
+                                           " far outside the cloud: stray readings, not meshed)"
+                                     : std::string())
+              << "\n"
               << "manifold         "
               << (rep.non_manifold_edges == 0 && rep.non_manifold_vertices == 0 ? "yes" : "NO")
               << ", orientation " << (rep.orientation_consistent ? "consistent" : "INCONSISTENT")

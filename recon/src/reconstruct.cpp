@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/grid.hpp"
@@ -58,7 +59,7 @@ bool has_sampling_gap(std::span<const Vec3> points, std::span<const Triangle> tr
   return false;
 }
 
-void check_input(std::span<const Vec3> points) {
+void check_values(std::span<const Vec3> points) {
   if (points.empty()) throw GeometryError("no points: the input is empty");
   std::size_t bad = 0, first_bad = 0;
   for (std::size_t i = 0; i < points.size(); ++i)
@@ -66,6 +67,32 @@ void check_input(std::span<const Vec3> points) {
   if (bad > 0)
     throw GeometryError(std::to_string(bad) + " point(s) have non-finite coordinates (first: #" +
                         std::to_string(first_bad) + ")");
+  // Squared distances must neither overflow nor underflow in double precision.
+  constexpr double kHuge = 1e100, kTiny = 1e-100;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (points[i].cwiseAbs().maxCoeff() > kHuge && bad++ == 0) first_bad = i;
+  if (bad > 0)
+    throw GeometryError(std::to_string(bad) + " point(s) have coordinates beyond +-1e100 (first: #" +
+                        std::to_string(first_bad) +
+                        "): too large to square in double precision; check the input's units");
+  Vec3 lo = points[0], hi = points[0];
+  for (const Vec3& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double extent = (hi - lo).maxCoeff();
+  if (extent > 0 && extent < kTiny) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "the cloud spans only %.3g", extent);
+    throw GeometryError(std::string(buf) +
+                        ": too small to mesh in double precision (its squared distances vanish); "
+                        "scale the input");
+  }
+}
+
+/// Distinct points and collinearity, after the far points are set aside (they would dominate
+/// the covariance).
+void check_shape(std::span<const Vec3> points) {
   // Distinct points and collinearity from the covariance of the cloud.
   std::size_t distinct = 1;
   for (std::size_t i = 1; i < points.size() && distinct < 3; ++i) {
@@ -115,7 +142,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     for (const auto& e : errors) msg += " " + e + ";";
     throw ConfigError(msg);
   }
-  check_input(points);
+  check_values(points);
   if (!towards_sensor.empty() && towards_sensor.size() != points.size())
     throw ConfigError("sensor directions: " + std::to_string(towards_sensor.size()) +
                       " given for " + std::to_string(points.size()) +
@@ -124,11 +151,63 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.input_points = points.size();
 
   stage("reduce");
+  // Stray points far outside the body of the cloud would stretch every grid beyond its reach:
+  // they go to the outliers (reported, not meshed), as long as they are a few.
+  std::vector<Vec3> far, near_points, near_sensor;
+  if (const auto far_idx = far_points(points); !far_idx.empty()) {
+    if (far_idx.size() * 100 > points.size()) {
+      char buf[256];
+      const Vec3& p = points[far_idx.front()];
+      std::snprintf(buf, sizeof buf,
+                    "%zu of %zu points (first: #%u at %.6g %.6g %.6g) lie far outside the body of "
+                    "the cloud, too many to be stray readings, too far to mesh with it: scans in "
+                    "different units or placements? Split the input",
+                    far_idx.size(), points.size(), far_idx.front(), p.x(), p.y(), p.z());
+      throw GeometryError(buf);
+    }
+    std::vector<std::uint8_t> is_far(points.size(), 0);
+    for (const std::uint32_t i : far_idx) {
+      is_far[i] = 1;
+      far.push_back(points[i]);
+    }
+    near_points.reserve(points.size() - far_idx.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (is_far[i]) continue;
+      near_points.push_back(points[i]);
+      if (!towards_sensor.empty()) near_sensor.push_back(towards_sensor[i]);
+    }
+    points = near_points;
+    towards_sensor = near_sensor;
+  }
+  check_shape(points);
+  res.far_points = far.size();
+
   res.spacing = estimate_spacing(points);
   std::vector<std::uint32_t> kept;
   if (options.cube_mode == ReconstructOptions::CubeMode::kNone) {
-    // Every point, but exact duplicates collapse (they cannot be separate vertices).
-    const double tiny = std::max(res.spacing.nearest_mm * 1e-3, 1e-12);
+    // Every point, but exact duplicates collapse (they cannot be separate vertices): points
+    // within a thousandth of the spacing, or, where the cloud spans more than the grid's 2
+    // million cells of that size per axis, within the cell that fits (at most a tenth).
+    double tiny = std::max(res.spacing.nearest_mm * 1e-3, 1e-12);
+    Vec3 lo = points[0], hi = points[0];
+    for (const Vec3& p : points) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    const double extent = (hi - lo).maxCoeff();
+    constexpr double kCells = 1.5e6;
+    if (extent > kCells * tiny) {
+      tiny = extent / kCells;
+      if (tiny > 0.1 * res.spacing.nearest_mm) {
+        char buf[256];
+        std::snprintf(buf, sizeof buf,
+                      "without cubes every point is kept, but the cloud spans %.6g, over "
+                      "150,000 times its point spacing (%.3g): too far for one grid; use a cube "
+                      "size (auto)",
+                      extent, res.spacing.nearest_mm);
+        throw GeometryError(buf);
+      }
+    }
     kept = cube_reduce(points, tiny);
     res.cube_mm = 0;
   } else {
@@ -224,6 +303,8 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     for (std::uint32_t& v : t) v = remap[v];
   res.outliers.reserve(fr.outliers.size());
   for (std::uint32_t v : fr.outliers) res.outliers.push_back(reduced[v]);
+  res.outliers.insert(res.outliers.end(), far.begin(), far.end());
+  std::vector<Vec3>().swap(far);
   res.seeds = fr.seeds;
   res.relaxed_triangles = fr.relaxed_triangles;
   res.filled_gaps = fr.filled_gaps;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -18,6 +19,15 @@
 
 namespace scanmesh::recon {
 namespace {
+
+GeometryError too_many_cubes(double cube, double extent) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "cube size %.6g is too small for the extent of the cloud (%.6g: over 2 million "
+                "cubes per axis); use a larger cube, or split the input",
+                cube, extent);
+  return GeometryError(buf);
+}
 
 constexpr std::uint32_t kNone = 0xffffffffu;
 
@@ -37,9 +47,7 @@ class CubeTable {
     }
     const double inv = 1.0 / cube;
     if ((hi - lo).maxCoeff() * inv > 2.0e6) {
-      throw GeometryError("cube size " + std::to_string(cube) +
-                          " is too small for the extent of the cloud (over 2 million cubes per "
-                          "axis)");
+      throw too_many_cubes(cube, (hi - lo).maxCoeff());
     }
     resize(std::bit_ceil(std::max<std::size_t>(64, points.size() / 2)));
     std::uint64_t last_key = ~std::uint64_t{0};
@@ -161,9 +169,7 @@ CubeReduction reduce_to_cubes(std::span<const Vec3> points, double cube, bool wa
   cr.lo = lo;
   const double inv = 1.0 / cube;
   if ((hi - lo).maxCoeff() * inv > 2.0e6) {
-    throw GeometryError("cube size " + std::to_string(cube) +
-                        " is too small for the extent of the cloud (over 2 million cubes per "
-                        "axis)");
+    throw too_many_cubes(cube, (hi - lo).maxCoeff());
   }
   const Vec3 top = (hi - lo) * inv;
   const std::uint64_t ny = static_cast<std::uint64_t>(top.y()) + 1;
@@ -508,6 +514,50 @@ std::vector<std::uint32_t> cube_reduce_thin(std::span<const Vec3> points, double
     ++count;
   }
   return indices_of(cr.bits, count);
+}
+
+std::vector<std::uint32_t> far_points(std::span<const Vec3> points, double max_extent_ratio) {
+  std::vector<std::uint32_t> far;
+  const std::size_t n = points.size();
+  if (n < 16) return far;
+  Vec3 lo = points[0], hi = points[0];
+  for (const Vec3& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  // The body: 10th to 90th percentile of each coordinate over an evenly spread sample.
+  constexpr std::size_t kSample = 65536;
+  const std::size_t stride = (n + kSample - 1) / kSample;
+  std::vector<double> v;
+  v.reserve(n / stride + 1);
+  Vec3 body_lo, body_hi;
+  for (int a = 0; a < 3; ++a) {
+    v.clear();
+    for (std::size_t i = 0; i < n; i += stride) v.push_back(points[i][a]);
+    const auto at = [&](double q) {
+      const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(v.size() - 1));
+      std::nth_element(v.begin(), v.begin() + k, v.end());
+      return v[static_cast<std::size_t>(k)];
+    };
+    body_lo[a] = at(0.1);
+    body_hi[a] = at(0.9);
+  }
+  const Vec3 width = body_hi - body_lo;
+  const double w = width.maxCoeff();
+  if (!(w > 0)) return far;  // the body is one point: nothing to measure the strays against
+  // Surface-sampling distance of the body (as estimate_spacing's reach, without its factor).
+  const Vec3 e = width.cwiseMax(1e-6 * w);
+  const double area = e.x() * e.y() + e.y() * e.z() + e.z() * e.x();
+  const double sampling = std::sqrt(area / static_cast<double>(n));
+  if (!((hi - lo).maxCoeff() > max_extent_ratio * sampling)) return far;
+  body_lo -= Vec3::Constant(w);
+  body_hi += Vec3::Constant(w);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = points[i];
+    if ((p.array() < body_lo.array()).any() || (p.array() > body_hi.array()).any())
+      far.push_back(static_cast<std::uint32_t>(i));
+  }
+  return far;
 }
 
 }  // namespace scanmesh::recon

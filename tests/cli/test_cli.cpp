@@ -407,6 +407,30 @@ TEST_CASE("reconstruct: cube none keeps more points than cube auto", "[cli]") {
   CHECK(jn["reduced_points"].get<std::size_t>() <= jn["input_points"].get<std::size_t>());
 }
 
+TEST_CASE("reconstruct: a stray reading far away is an outlier, written with the others", "[cli]") {
+  TempDir dir;
+  std::string text;
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 40; ++j)
+      text += std::to_string(i) + " " + std::to_string(j) + " " +
+              std::to_string(0.3 * std::sin(0.2 * i)) + "\n";
+  text += "1e9 1e9 1e9\n";
+  spit(dir / "scan.xyz", text);
+  const RunResult r = run(dir, {"reconstruct", dir / "scan.xyz", "-o", dir / "m.ply", "--json",
+                                "--outliers", dir / "out.xyz"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json j = json_of(r);
+  CHECK(j["input_points"] == 1601);
+  CHECK(j["far_points"] == 1);
+  CHECK(j["outliers"].get<int>() >= 1);
+  CHECK(j["boundary_loops"] == 1);
+  check_manifold_oriented(j);
+  CHECK(slurp(dir / "out.xyz") == "1e+09 1e+09 1e+09\n");
+  const RunResult plain = run(dir, {"reconstruct", dir / "scan.xyz", "-o", dir / "m2.ply"});
+  CHECK(plain.out.find("1 far outside the cloud") != std::string::npos);
+}
+
 TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
   TempDir dir;
   const fs::path cube = dir / "cube.ply";

@@ -369,3 +369,87 @@ TEST_CASE("degenerate inputs give clear errors", "[recon]") {
     CHECK_THROWS_WITH(reconstruct(test::sphere_points(100), wide), Contains("bulk_patch_cone_deg"));
   }
 }
+
+TEST_CASE("coordinates the geometry cannot square give clear errors", "[recon]") {
+  using Catch::Matchers::Contains;
+  std::vector<Vec3> huge, tiny;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) {
+      huge.emplace_back(1e300 * i, 1e300 * j, 0);
+      tiny.emplace_back(1e-300 * i, 1e-300 * j, 1e-301 * std::sin(i));
+    }
+  CHECK_THROWS_WITH(reconstruct(huge), Contains("beyond +-1e100") && Contains("#1)"));
+  CHECK_THROWS_WITH(reconstruct(tiny), Contains("spans only") && Contains("scale the input"));
+}
+
+// A flat, slightly wavy plate of 60 x 60 points at spacing 1.
+static std::vector<Vec3> plate_points() {
+  std::vector<Vec3> pts;
+  for (int i = 0; i < 60; ++i)
+    for (int j = 0; j < 60; ++j) pts.emplace_back(i, j + 0.3 * (i % 2), 0.4 * std::sin(0.2 * i));
+  return pts;
+}
+
+TEST_CASE("stray readings far outside the cloud become outliers, not a failed scan", "[recon]") {
+  using Catch::Matchers::Contains;
+  const auto plate = plate_points();
+  const auto ref = reconstruct(plate);
+  // A glitched reading and a sensor's out-of-range sentinel: without the split, the extent
+  // needs over 2 million cubes per axis and the whole scan failed.
+  auto pts = plate;
+  pts.insert(pts.begin() + 1000, Vec3(1e9, 1e9, 1e9));
+  pts.emplace_back(0, 0, 9.9e37);
+  std::vector<Vec3> sensor(pts.size(), Vec3(0, 0, 1));
+  for (const auto cube : {ReconstructOptions::CubeMode::kAuto, ReconstructOptions::CubeMode::kNone}) {
+    ReconstructOptions opt;
+    opt.cube_mode = cube;
+    const auto r = reconstruct(pts, opt, {}, sensor);
+    const MeshReport rep = analyze(r.mesh);
+    require_valid(r, rep);
+    CHECK(r.input_points == plate.size() + 2);
+    CHECK(r.far_points == 2);
+    REQUIRE(r.outliers.size() >= 2);
+    // The far points are the last outliers, as they were read.
+    CHECK(r.outliers[r.outliers.size() - 2] == Vec3(1e9, 1e9, 1e9));
+    CHECK(r.outliers.back() == Vec3(0, 0, 9.9e37));
+    CHECK(rep.boundary_loops == 1);
+    CHECK(rep.components == 1);
+    if (cube == ReconstructOptions::CubeMode::kAuto) {
+      // The rest is meshed exactly as without the strays.
+      CHECK(r.mesh.vertices == ref.mesh.vertices);
+      CHECK(r.mesh.triangles == ref.mesh.triangles);
+    }
+  }
+  // More than 1 % far away is not stray readings: a clear error, nothing dropped silently.
+  auto many = plate;
+  for (int k = 0; k < 40; ++k) many.emplace_back(1e7 + k, 5, 5);
+  CHECK_THROWS_WITH(reconstruct(many), Contains("40 of 3640 points") &&
+                                           Contains("far outside the body"));
+  // A cloud that fits is never split, however far apart its parts: two plates 10^4 apart.
+  auto two = plate;
+  for (const Vec3& p : plate) two.push_back(p + Vec3(1e4, 0, 0));
+  const auto r2 = reconstruct(two);
+  CHECK(r2.far_points == 0);
+  CHECK(analyze(r2.mesh).components == 2);
+}
+
+TEST_CASE("without cubes, a long scan keeps every point", "[recon]") {
+  // 5,000 spacings long: the duplicate collapse's grid (a thousandth of the spacing) would need
+  // 5 million cells per axis; it takes the cell that fits instead (here 0.0033 spacings).
+  std::vector<Vec3> strip;
+  for (int i = 0; i < 5000; ++i)
+    for (int j = 0; j < 6; ++j) strip.emplace_back(i, j, 50 * std::sin(0.001 * i));
+  ReconstructOptions none;
+  none.cube_mode = ReconstructOptions::CubeMode::kNone;
+  const auto r = reconstruct(strip, none);
+  const MeshReport rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(r.reduced_points == strip.size());
+  CHECK(r.mesh.vertices.size() == strip.size());
+  CHECK(rep.boundary_loops == 1);
+  // Beyond 150,000 spacings the collapse would merge real points: a clear error instead.
+  std::vector<Vec3> far_apart = plate_points();
+  for (int k = 0; k < 60; ++k) far_apart.emplace_back(2e5 + k, 0, 0);
+  for (int k = 0; k < 3600; ++k) far_apart.push_back(far_apart[k] + Vec3(4e5, 0, 0));
+  CHECK_THROWS_WITH(reconstruct(far_apart, none), Catch::Matchers::Contains("150,000 times"));
+}

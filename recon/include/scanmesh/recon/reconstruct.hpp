@@ -52,7 +52,10 @@ struct ReconstructResult {
   std::size_t reduced_points = 0;  ///< points handed to the front
   double cube_mm = 0;              ///< cube edge used (0 = none)
   SpacingEstimate spacing;
-  std::vector<Vec3> outliers;      ///< reduced points the front never reached
+  /// Reduced points the front never reached, then the far points (input points far outside
+  /// the body of the cloud, see far_points in reduce.hpp: stray readings, not meshed).
+  std::vector<Vec3> outliers;
+  std::size_t far_points = 0;  ///< of which far points (the last ones in `outliers`)
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
   RefineStats refine;  ///< points the front left out that were inserted afterwards
   FillStats gaps;      ///< sampling gaps closed at the end (options.close_gaps)
@@ -70,7 +73,9 @@ struct ReconstructResult {
 };
 
 /// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,
-/// fewer than 3 distinct points, non-finite coordinates, all points collinear.
+/// fewer than 3 distinct points, non-finite coordinates or coordinates beyond +-1e100, a cloud
+/// spanning less than 1e-100, all points collinear, more than 1 % of the points far outside
+/// the body of the cloud (a few such stray points become outliers).
 /// `observer` (StageObserver, front.hpp) hears the name of each stage when it starts ("reduce",
 /// "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, and "fill" when
 /// holes are to be closed) and "done" at the end. Steps within a stage carry the stage's name
