@@ -52,6 +52,8 @@ nlohmann::json to_json(const recon::MeshReport& r, const recon::SelfIntersection
   j["components"] = r.components;
   j["euler_characteristic"] = r.euler_characteristic;
   j["genus"] = r.genus;
+  // chi = 2c - 2g - b holds for manifold surfaces only: elsewhere the number means nothing.
+  j["genus_defined"] = r.non_manifold_edges == 0 && r.non_manifold_vertices == 0;
   j["angle_min_deg"] = r.min_angle_deg;
   j["angle_max_deg"] = r.max_angle_deg;
   j["angle_mean_deg"] = r.mean_angle_deg;
@@ -104,7 +106,9 @@ void print_text(const std::string& file, const recon::MeshReport& r,
   }
   line("components", count(r.components));
   line("euler characteristic", std::to_string(r.euler_characteristic));
-  line("genus", std::to_string(r.genus));
+  line("genus", r.non_manifold_edges == 0 && r.non_manifold_vertices == 0
+                    ? std::to_string(r.genus)
+                    : std::to_string(r.genus) + " (not defined: the mesh is not manifold)");
   line("interior angles", "min " + num(r.min_angle_deg) + " deg, max " + num(r.max_angle_deg) +
                               " deg, mean " + num(r.mean_angle_deg) + " deg");
   line("min angle < 10 / 20 deg", percent(r.frac_min_angle_below_10) + " / " +

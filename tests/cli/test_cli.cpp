@@ -463,6 +463,7 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
   CHECK(j["components"] == 1);
   CHECK(j["euler_characteristic"] == 2);
   CHECK(j["genus"] == 0);
+  CHECK(j["genus_defined"] == true);
   CHECK(j["signed_volume"].get<double>() == Approx(1.0));
   CHECK(j["angle_min_deg"].get<double>() == Approx(45.0));
   CHECK(j["angle_max_deg"].get<double>() == Approx(90.0));
@@ -497,6 +498,17 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
     CHECK(s["boundary_edges"] == 4);
     CHECK(s["boundary_loop_lengths"] == json::array({4}));
     CHECK(s["boundary_loop_perimeters"].at(0).get<double>() == Approx(4.0));
+  }
+  SECTION("three triangles on one edge: no genus to report") {
+    scanmesh::recon::Mesh fin;
+    fin.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}};
+    fin.triangles = {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}};
+    scanmesh::meshio::write_mesh(fin, dir / "fin.obj");
+    const json f = json_of(run(dir, {"inspect", dir / "fin.obj", "--json"}));
+    CHECK(f["non_manifold_edges"] == 1);
+    CHECK(f["genus_defined"] == false);
+    const RunResult t = run(dir, {"inspect", dir / "fin.obj"});
+    CHECK_THAT(t.out, Catch::Contains("(not defined: the mesh is not manifold)"));
   }
   SECTION("the text report") {
     const RunResult t = run(dir, {"inspect", cube});
