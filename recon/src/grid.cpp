@@ -24,12 +24,8 @@ void PointGrid::build(std::span<const Vec3> points, double cell) {
   if (!(cell > 0) || !std::isfinite(cell)) throw GeometryError("grid cell size must be positive");
   cell_ = cell;
   inv_cell_ = 1.0 / cell;
-  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-  Vec3 hi = -lo;
-  for (const Vec3& p : points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
+  const Eigen::AlignedBox3d box = bounding_box(points);
+  const Vec3 lo = box.min(), hi = box.max();
   // Leave one empty cell of margin below the minimum so ring queries never underflow.
   for (int a = 0; a < 3; ++a) origin_[a] = points.empty() ? 0.0 : lo[a] - cell;
   if (!points.empty() && ((hi - lo).maxCoeff() * inv_cell_ + 3 > static_cast<double>(kMax))) {

@@ -75,12 +75,7 @@ void check_values(std::span<const Vec3> points) {
     throw GeometryError(std::to_string(bad) + " point(s) have coordinates beyond +-1e100 (first: #" +
                         std::to_string(first_bad) +
                         "): too large to square in double precision; check the input's units");
-  Vec3 lo = points[0], hi = points[0];
-  for (const Vec3& p : points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  const double extent = (hi - lo).maxCoeff();
+  const double extent = bounding_box(points).sizes().maxCoeff();
   if (extent > 0 && extent < kTiny) {
     char buf[96];
     std::snprintf(buf, sizeof buf, "the cloud spans only %.3g", extent);
@@ -189,12 +184,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     // within a thousandth of the spacing, or, where the cloud spans more than the grid's 2
     // million cells of that size per axis, within the cell that fits (at most a tenth).
     double tiny = std::max(res.spacing.nearest_mm * 1e-3, 1e-12);
-    Vec3 lo = points[0], hi = points[0];
-    for (const Vec3& p : points) {
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
-    }
-    const double extent = (hi - lo).maxCoeff();
+    const double extent = bounding_box(points).sizes().maxCoeff();
     constexpr double kCells = 1.5e6;
     if (extent > kCells * tiny) {
       tiny = extent / kCells;

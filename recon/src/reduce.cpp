@@ -40,11 +40,8 @@ class CubeTable {
     if (!(cube > 0) || !std::isfinite(cube)) throw GeometryError("cube size must be positive");
     if (points.size() >= kNone) throw GeometryError("too many points (at most 2^32 - 1)");
     if (points.empty()) return;
-    Vec3 lo = points[0], hi = points[0];
-    for (const Vec3& p : points) {
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
-    }
+    const Eigen::AlignedBox3d box = bounding_box(points);
+    const Vec3 lo = box.min(), hi = box.max();
     const double inv = 1.0 / cube;
     if ((hi - lo).maxCoeff() * inv > 2.0e6) {
       throw too_many_cubes(cube, (hi - lo).maxCoeff());
@@ -161,11 +158,8 @@ CubeReduction reduce_to_cubes(std::span<const Vec3> points, double cube, bool wa
   const std::size_t n = points.size();
   if (n == 0) return cr;
   if (n >= kNone) throw GeometryError("too many points (at most 2^32 - 1)");
-  Vec3 lo = points[0], hi = points[0];
-  for (const Vec3& p : points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
+  const Eigen::AlignedBox3d box = bounding_box(points);
+  const Vec3 lo = box.min(), hi = box.max();
   cr.lo = lo;
   const double inv = 1.0 / cube;
   if ((hi - lo).maxCoeff() * inv > 2.0e6) {
@@ -520,13 +514,9 @@ std::vector<std::uint32_t> far_points(std::span<const Vec3> points, double max_e
   std::vector<std::uint32_t> far;
   const std::size_t n = points.size();
   if (n < 16) return far;
-  Vec3 lo = points[0], hi = points[0];
-  for (const Vec3& p : points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
+  const double extent = bounding_box(points).sizes().maxCoeff();
   // The body: 10th to 90th percentile of each coordinate over an evenly spread sample.
-  constexpr std::size_t kSample = 65536;
+  constexpr std::size_t kSample = 4096;
   const std::size_t stride = (n + kSample - 1) / kSample;
   std::vector<double> v;
   v.reserve(n / stride + 1);
@@ -549,7 +539,7 @@ std::vector<std::uint32_t> far_points(std::span<const Vec3> points, double max_e
   const Vec3 e = width.cwiseMax(1e-6 * w);
   const double area = e.x() * e.y() + e.y() * e.z() + e.z() * e.x();
   const double sampling = std::sqrt(area / static_cast<double>(n));
-  if (!((hi - lo).maxCoeff() > max_extent_ratio * sampling)) return far;
+  if (!(extent > max_extent_ratio * sampling)) return far;
   body_lo -= Vec3::Constant(w);
   body_hi += Vec3::Constant(w);
   for (std::size_t i = 0; i < n; ++i) {

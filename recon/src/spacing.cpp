@@ -142,11 +142,8 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
   SpacingEstimate est;
   const std::size_t n = points.size();
   if (n < 2) return est;
-  Vec3 lo = points[0], hi = points[0];
-  for (const Vec3& p : points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
+  const Eigen::AlignedBox3d box = bounding_box(points);
+  const Vec3 lo = box.min(), hi = box.max();
   const Vec3 ext = (hi - lo).cwiseMax(1e-12 * (hi - lo).norm() + 1e-300);
   // A surface sample of n points in a box: about n / (2 * area) points per unit area (surface
   // area ~ sum of the box face areas). `reach` (a few dozen points' worth) bounds every search.

@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace scanmesh::recon {
@@ -23,5 +24,12 @@ struct Mesh {
   std::vector<Vec3> vertices;
   std::vector<Triangle> triangles;
 };
+
+/// The smallest axis-aligned box holding the points (empty, min > max, for none).
+inline Eigen::AlignedBox3d bounding_box(std::span<const Vec3> points) {
+  Eigen::AlignedBox3d box;
+  for (const Vec3& p : points) box.extend(p);
+  return box;
+}
 
 }  // namespace scanmesh::recon

@@ -73,7 +73,7 @@ std::vector<std::uint32_t> cube_reduce_thin(std::span<const Vec3> points, double
 /// out-of-range sentinel. One of them stretches the cloud's extent so far that no grid at the
 /// sampling's resolution can hold it (21 bits a cell coordinate), and the whole scan would fail.
 /// The body is the box of the 10th to 90th percentile of each coordinate (from an evenly spread
-/// sample of at most 65,536 points), widened on every side by its largest width. Only when the
+/// sample of at most 4,096 points), widened on every side by its largest width. Only when the
 /// whole extent exceeds `max_extent_ratio` times the body's surface-sampling distance
 /// (sqrt(face area / points)) are the points outside that box returned; otherwise none. Returns
 /// indices, ascending. Clouds that fit, however large, are never split.
