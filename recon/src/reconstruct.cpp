@@ -69,13 +69,15 @@ void check_values(std::span<const Vec3> points) {
                         std::to_string(first_bad) + ")");
   // Squared distances must neither overflow nor underflow in double precision.
   constexpr double kHuge = 1e100, kTiny = 1e-100;
-  for (std::size_t i = 0; i < points.size(); ++i)
-    if (points[i].cwiseAbs().maxCoeff() > kHuge && bad++ == 0) first_bad = i;
-  if (bad > 0)
+  const Eigen::AlignedBox3d box = bounding_box(points);
+  if (std::max(box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff()) > kHuge) {
+    for (std::size_t i = 0; i < points.size(); ++i)  // only to name them
+      if (points[i].cwiseAbs().maxCoeff() > kHuge && bad++ == 0) first_bad = i;
     throw GeometryError(std::to_string(bad) + " point(s) have coordinates beyond +-1e100 (first: #" +
                         std::to_string(first_bad) +
                         "): too large to square in double precision; check the input's units");
-  const double extent = bounding_box(points).sizes().maxCoeff();
+  }
+  const double extent = box.sizes().maxCoeff();
   if (extent > 0 && extent < kTiny) {
     char buf[96];
     std::snprintf(buf, sizeof buf, "the cloud spans only %.3g", extent);
@@ -160,14 +162,14 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
                     far_idx.size(), points.size(), far_idx.front(), p.x(), p.y(), p.z());
       throw GeometryError(buf);
     }
-    std::vector<std::uint8_t> is_far(points.size(), 0);
-    for (const std::uint32_t i : far_idx) {
-      is_far[i] = 1;
-      far.push_back(points[i]);
-    }
     near_points.reserve(points.size() - far_idx.size());
+    std::size_t next = 0;  // far_idx is ascending
     for (std::size_t i = 0; i < points.size(); ++i) {
-      if (is_far[i]) continue;
+      if (next < far_idx.size() && far_idx[next] == i) {
+        far.push_back(points[i]);
+        ++next;
+        continue;
+      }
       near_points.push_back(points[i]);
       if (!towards_sensor.empty()) near_sensor.push_back(towards_sensor[i]);
     }
