@@ -142,7 +142,7 @@ class Bulk {
   }
 
   [[nodiscard]] double spacing(std::uint32_t v) const {
-    return std::min<double>(f_.spacing[v], opt_.spacing_cap);
+    return opt_.spacing[v];
   }
 
   /// Whether a point outside patch `id` lies strictly inside the circumsphere of (a, b, c).

@@ -24,7 +24,7 @@ struct BulkOptions {
   double cos_min_angle = 0.9396926207859084;  // cos 20 degrees
   double cos_dihedral = 0.0;                  // cos (180 - 90) degrees
   double cos_corner = 0.8660254037844387;     // cos 30 degrees
-  double spacing_cap = 0;                     // the front's cap on the local spacing (> 0)
+  std::span<const float> spacing;             // the front's capped local spacing, per point
   int max_valence = 16;
   /// Every point of a patch has its normal within this angle of the seed cell's direction and
   /// of the projection axis (the patch's mean normal, or else the seed's), so the patch is a

@@ -270,8 +270,7 @@ class Builder {
       std::vector<float> sp = frames.spacing;
       auto mid = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2);
       std::nth_element(sp.begin(), mid, sp.end());
-      max_spacing_ = kMaxSparsity * static_cast<double>(*mid);
-      res_.spacing_cap = max_spacing_;
+      cap_spacing(static_cast<double>(*mid));
       // Clearance of the front-edge tests: 8 float roundings (2^-24 relative) of the largest
       // coordinate, so that no vertex that just misses an edge lands on it in a float file; at
       // most 1e-3 of the median spacing (a cloud far from the origin, which a float file cannot
@@ -359,11 +358,10 @@ class Builder {
     Vec3 n = f_.normal[v].cast<double>();
     return n.dot(ref) < 0 ? -n : n;
   }
-  /// Local spacing, capped at kMaxSparsity x the median so that the sparse fringe of a scan
-  /// (grazing angles) cannot pull triangles many spacings long.
-  [[nodiscard]] double spacing(std::uint32_t v) const {
-    return std::min<double>(f_.spacing[v], max_spacing_);
-  }
+  /// Local spacing, capped (cap_spacing) so that a point much sparser than its surroundings
+  /// (the fringe of a scan at grazing angles, a stray reading) cannot pull long triangles.
+  [[nodiscard]] double spacing(std::uint32_t v) const { return sp_[v]; }
+  void cap_spacing(double median);
 
   /// Unmeshed angle at the end vertex b of edge e (between e and its successor), as ccw_turn.
   [[nodiscard]] double front_turn_at_end(std::uint32_t eid) const {
@@ -645,7 +643,8 @@ class Builder {
   static constexpr double kStackedCos = 0.3;
   /// Edges whose front angle at either end is below 120 degrees are processed first.
   const double ear_turn_ = turn_of_degrees(120);
-  double max_spacing_ = 0;
+  double max_spacing_ = 0;  // the largest capped spacing: bounds every edge's length
+  std::vector<float> sp_;   // capped spacing per point (cap_spacing)
   std::span<const Vec3> p_;
   const LocalFrames& f_;
   const PointGrid& grid_;
@@ -1901,6 +1900,44 @@ void Builder::orient_components(detail::TriangleComponents& components) {
     if (flip[comp(t)]) std::swap(t[1], t[2]);
 }
 
+void Builder::cap_spacing(double median) {
+  // A point's spacing is capped at kMaxSparsity times the median spacing of the points in the
+  // 27 grid cells around its own (about 11 median spacings across), or of the whole cloud where
+  // that is larger. Where a whole region is sampled sparsely (an overview pass beside a detail
+  // pass, a part scanned at a coarser line pitch) its points keep their own spacing and connect;
+  // a point much sparser than its surroundings does not pull long triangles. With the cloud's
+  // median alone, a region over about 5 times sparser than the median fell apart.
+  const std::size_t n = p_.size();
+  sp_.resize(n);
+  res_.spacing_cap = kMaxSparsity * median;
+  max_spacing_ = 0;
+  const std::vector<std::uint32_t>& order = grid_.order();
+  const std::vector<float>& raw = f_.spacing;
+  std::vector<float> block;
+  grid_.for_each_cell([&](std::int64_t cx, std::int64_t cy, std::int64_t cz, std::uint32_t first,
+                          std::uint32_t last) {
+    // Most cells lie where the cloud is at most as sparse as its median: the cap there is the
+    // cloud's, whatever the block's median, unless a point of the cell exceeds it.
+    float cap = static_cast<float>(res_.spacing_cap);
+    bool over = false;
+    for (std::uint32_t s = first; s < last; ++s) over = over || raw[order[s]] > cap;
+    if (over) {
+      block.clear();
+      grid_.for_each_block_range(cx, cy, cz, 1, [&](std::uint32_t f, std::uint32_t l) {
+        for (std::uint32_t s = f; s < l; ++s) block.push_back(raw[order[s]]);
+      });
+      auto mid = block.begin() + static_cast<std::ptrdiff_t>(block.size() / 2);
+      std::nth_element(block.begin(), mid, block.end());
+      cap = std::max(cap, static_cast<float>(kMaxSparsity * static_cast<double>(*mid)));
+    }
+    for (std::uint32_t s = first; s < last; ++s) {
+      const std::uint32_t v = order[s];
+      sp_[v] = std::min(raw[v], cap);
+      max_spacing_ = std::max(max_spacing_, static_cast<double>(sp_[v]));
+    }
+  });
+}
+
 void Builder::mark_turning_points() {
   // A point is a turning point when a point within the candidate reach has a normal more than
   // the normal rule's angle away from its own. Coarse first: per grid cell, the cone of its
@@ -2167,7 +2204,7 @@ void Builder::grow_from_bulk() {
   bo.cos_min_angle = std::cos(opt_.min_angle_deg * kPi / 180);
   bo.cos_dihedral = std::cos((180.0 - opt_.min_dihedral_deg) * kPi / 180);
   bo.cos_corner = std::max<double>(kCosBent, cos_normal_);
-  bo.spacing_cap = max_spacing_;
+  bo.spacing = sp_;
   bo.max_valence = opt_.max_valence;
   bo.max_patch_points = opt_.bulk_patch_points;
   bo.patch_cone_deg = opt_.bulk_patch_cone_deg;
@@ -2291,6 +2328,7 @@ FrontResult Builder::run() {
   }
   res_.triangles = std::move(tris_);
   res_.state = std::move(state_);
+  res_.spacing = std::move(sp_);
   return std::move(res_);
 }
 

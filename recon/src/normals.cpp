@@ -361,7 +361,7 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
       grid.for_each_near(p, ring, [&](std::uint32_t j) {
         if (j != i) near.emplace_back((points[j] - p).squaredNorm(), j);
       });
-      if (near.size() >= k || ring >= 3) break;
+      if (near.size() >= k || ring >= 8) break;
       near.clear();
       ++ring;
     }

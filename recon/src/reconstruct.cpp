@@ -268,10 +268,9 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
 
     stage("refine");
     res.refine = insert_unused_points(reduced, frames, grid, fr, options.refine);
-    if (options.close_gaps) {  // the front's own measure, as in its own gap closing
-      spacing = frames.spacing;
-      for (float& s : spacing) s = static_cast<float>(std::min<double>(s, fr.spacing_cap));
-    }
+    // The front's own measure, as in its own gap closing.
+    if (options.close_gaps) spacing = std::move(fr.spacing);
+    std::vector<float>().swap(fr.spacing);
   }  // frames and grid are freed here, before the output copy
 
   stage("output");

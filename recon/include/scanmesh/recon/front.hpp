@@ -104,8 +104,11 @@ struct FrontResult {
   /// Small components removed because they crossed another one (their points are outliers).
   std::size_t dropped_components = 0;
   /// The front's local spacing of a point is frames.spacing capped at this (2.5 x the median),
-  /// so that the sparse fringe of a scan cannot pull long triangles.
+  /// or, where the 27 grid cells around the point are sparser, at 2.5 x their median: a region
+  /// sampled sparsely as a whole connects, a point much sparser than its surroundings (the
+  /// fringe of a scan at grazing angles) cannot pull long triangles.
   double spacing_cap = 0;
+  std::vector<float> spacing;  ///< the capped local spacing of every point, as the front used it
 };
 
 /// Called with the name of each stage (or step of a stage) as it starts; the core keeps no
