@@ -622,6 +622,16 @@ class Builder {
   mutable std::uint16_t stamp_ = 0;
 
   static constexpr double kMaxSparsity = 2.5;
+  /// cap_spacing: a sparse point keeps its own spacing only where at least kRegionPoints other
+  /// points lie within kRegionRadius of its spacings and they form a plane (the smallest
+  /// eigenvalue's share of their scatter at most kRegionFlatness; a scatter in the air is about
+  /// 0.1, 7 stray readings were seen under 0.03).
+  static constexpr std::size_t kRegionPoints = 12;
+  static constexpr double kRegionRadius = 3.0;
+  static constexpr double kRegionFlatness = 0.03;
+  /// ... and v, and the neighbours whose spacings count, lie within kRegionBand of v's spacing
+  /// of the neighbourhood's plane.
+  static constexpr double kRegionBand = 0.25;
   /// Cosine of 5 degrees: corner normals this close to a new triangle's skip its fan test.
   static constexpr float kCosFlat = 0.9961947f;
   /// An open sector narrower than this (ccw_turn units, about 1.1 degrees) or wider than a full
@@ -1901,41 +1911,76 @@ void Builder::orient_components(detail::TriangleComponents& components) {
 }
 
 void Builder::cap_spacing(double median) {
-  // A point's spacing is capped at kMaxSparsity times the median spacing of the points in the
-  // 27 grid cells around its own (about 11 median spacings across), or of the whole cloud where
-  // that is larger. Where a whole region is sampled sparsely (an overview pass beside a detail
-  // pass, a part scanned at a coarser line pitch) its points keep their own spacing and connect;
-  // a point much sparser than its surroundings does not pull long triangles. With the cloud's
-  // median alone, a region over about 5 times sparser than the median fell apart.
+  // A point's spacing is capped at kMaxSparsity times the cloud's median spacing, or, for a
+  // point sparser than that, at kMaxSparsity times the median spacing (by area) of the points
+  // within kRegionRadius of its own spacings, where it has at least kRegionPoints of them and
+  // they lie on a plane with it. Where a whole region is sampled sparsely (an overview pass
+  // beside a detail pass, a part scanned at a coarser line pitch) its points keep their own
+  // spacing and connect; a point much sparser than its surroundings (a stray reading near the
+  // surface) or a scatter of stray readings in the air (no plane) does not pull long triangles.
+  // With the cloud's median alone, a region over about 5 times sparser than it fell apart.
+  // Only the points over the cloud's cap are examined (none of the bunny's points, 85 of bun000's).
   const std::size_t n = p_.size();
   sp_.resize(n);
   res_.spacing_cap = kMaxSparsity * median;
+  const auto cap = static_cast<float>(res_.spacing_cap);
   max_spacing_ = 0;
   const std::vector<std::uint32_t>& order = grid_.order();
   const std::vector<float>& raw = f_.spacing;
-  std::vector<float> block;
-  grid_.for_each_cell([&](std::int64_t cx, std::int64_t cy, std::int64_t cz, std::uint32_t first,
-                          std::uint32_t last) {
-    // Most cells lie where the cloud is at most as sparse as its median: the cap there is the
-    // cloud's, whatever the block's median, unless a point of the cell exceeds it.
-    float cap = static_cast<float>(res_.spacing_cap);
-    bool over = false;
-    for (std::uint32_t s = first; s < last; ++s) over = over || raw[order[s]] > cap;
-    if (over) {
-      block.clear();
-      grid_.for_each_block_range(cx, cy, cz, 1, [&](std::uint32_t f, std::uint32_t l) {
-        for (std::uint32_t s = f; s < l; ++s) block.push_back(raw[order[s]]);
-      });
-      auto mid = block.begin() + static_cast<std::ptrdiff_t>(block.size() / 2);
-      std::nth_element(block.begin(), mid, block.end());
-      cap = std::max(cap, static_cast<float>(kMaxSparsity * static_cast<double>(*mid)));
+  struct Near {
+    Vec3 d;     // offset from v
+    float raw;  // its spacing
+  };
+  std::vector<Near> near;
+  std::vector<float> on;
+  for (std::uint32_t v = 0; v < n; ++v) {
+    sp_[v] = std::min(raw[v], cap);
+    if (raw[v] <= cap) continue;
+    const double r = kRegionRadius * static_cast<double>(raw[v]);
+    const Vec3& pv = p_[v];
+    near.clear();
+    Vec3 sum = Vec3::Zero();
+    Eigen::Matrix3d moment = Eigen::Matrix3d::Zero();
+    grid_.for_each_range_within(pv, r, [&](std::uint32_t first, std::uint32_t last) {
+      for (std::uint32_t q = first; q < last; ++q) {
+        const std::uint32_t u = order[q];
+        const Vec3 d = p_[u] - pv;
+        if (u == v || d.squaredNorm() > r * r) continue;
+        near.push_back({d, raw[u]});
+        sum += d;
+        moment += d * d.transpose();
+      }
+    });
+    if (near.size() < kRegionPoints) continue;
+    // On a surface: the neighbourhood fits a plane, and v lies on it.
+    const double m = static_cast<double>(near.size());
+    const Vec3 mean = sum / m;
+    const detail::PlaneFit fit = detail::plane_normal(moment / m - mean * mean.transpose());
+    const Vec3 ev = fit.eigenvalues.cwiseMax(0.0);
+    const double band = kRegionBand * static_cast<double>(raw[v]);
+    if (!(ev[0] <= kRegionFlatness * ev.sum()) || std::abs(mean.dot(fit.normal)) > band) continue;
+    // The median by area (each point weighs its spacing squared) of the neighbours on that
+    // plane: beside a seam with a denser sampling, the dense points outnumber the sparse ones
+    // but cover less of the surface; stray readings off the surface do not count.
+    on.clear();
+    for (const Near& q : near)
+      if (std::abs((q.d - mean).dot(fit.normal)) <= band) on.push_back(q.raw);
+    if (on.size() < kRegionPoints) continue;
+    std::sort(on.begin(), on.end());
+    double total = 0;
+    for (float x : on) total += static_cast<double>(x) * x;
+    double acc = 0;
+    float mid = on.back();
+    for (float x : on) {
+      acc += static_cast<double>(x) * x;
+      if (2 * acc >= total) {
+        mid = x;
+        break;
+      }
     }
-    for (std::uint32_t s = first; s < last; ++s) {
-      const std::uint32_t v = order[s];
-      sp_[v] = std::min(raw[v], cap);
-      max_spacing_ = std::max(max_spacing_, static_cast<double>(sp_[v]));
-    }
-  });
+    sp_[v] = std::min(raw[v], std::max(cap, static_cast<float>(kMaxSparsity * static_cast<double>(mid))));
+  }
+  for (float x : sp_) max_spacing_ = std::max(max_spacing_, static_cast<double>(x));
 }
 
 void Builder::mark_turning_points() {

@@ -348,7 +348,8 @@ LocalFrames estimate_frames(std::span<const Vec3> points, const PointGrid& grid,
   std::vector<std::uint32_t> best_j(k);
   std::vector<double> best_d2(k);
   // The reference neighbourhood: the k nearest among the points of the 27 cells around p
-  // (125, then 343 when too few), ties broken by the lower index.
+  // (125, 343, ... up to 17^3 cells when too few: a region sampled up to about 15 times more
+  // sparsely than the grid was sized for still finds its k), ties broken by the lower index.
   std::vector<std::pair<double, std::uint32_t>> near;
   std::vector<double> sx(k), sy(k), sz(k);
   std::vector<std::uint32_t> seq(k);

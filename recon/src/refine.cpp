@@ -43,6 +43,11 @@ class Refiner {
   RefineStats run();
 
  private:
+  /// The local spacing as the front capped it (a stray reading's own spacing can be many times
+  /// the surface's), or the frames' where the front gave none.
+  [[nodiscard]] double spacing(std::uint32_t v) const {
+    return fr_.spacing.empty() ? f_.spacing[v] : fr_.spacing[v];
+  }
   [[nodiscard]] bool complete(std::uint32_t v) const { return slot_[v] != kNone; }
   std::vector<std::uint32_t>& around(std::uint32_t v) { return lists_[slot_[v]]; }
   void make_complete(std::uint32_t v) {
@@ -184,14 +189,14 @@ void Refiner::list_triangles_near(const std::vector<std::uint32_t>& slivers) {
     });
   };
   for (std::uint32_t q : fr_.outliers)
-    mark_around(q, (o_.search_factor + kListReach) * f_.spacing[q]);
+    mark_around(q, (o_.search_factor + kListReach) * spacing(q));
   // Flips reach one edge beyond a sliver's corners (the quads' far corners): mark that far.
   for (std::uint32_t t : slivers) {
     const Triangle& tr = tris_[t];
     const double longest = std::sqrt(std::max({(p_[tr[0]] - p_[tr[1]]).squaredNorm(),
                                                (p_[tr[1]] - p_[tr[2]]).squaredNorm(),
                                                (p_[tr[2]] - p_[tr[0]]).squaredNorm()}));
-    for (std::uint32_t v : tr) mark_around(v, std::max(1.2 * longest, 2.0 * f_.spacing[v]));
+    for (std::uint32_t v : tr) mark_around(v, std::max(1.2 * longest, 2.0 * spacing(v)));
   }
   slot_.assign(n, kNone);
   for (std::uint32_t v = 0; v < n; ++v)
@@ -306,7 +311,7 @@ bool Refiner::single_fan(std::uint32_t v) {
 
 bool Refiner::try_insert(std::uint32_t q) {
   const Vec3& P = p_[q];
-  const double sp = f_.spacing[q];
+  const double sp = spacing(q);
   const Vec3 nq = f_.normal[q].cast<double>();
   const double r = o_.search_factor * sp, hmax = o_.max_height_factor * sp;
   cand_.clear();
@@ -411,7 +416,7 @@ bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> g
   // longest edge (at most about 4 local spacings) of nt's bounding sphere.
   const detail::TriangleBounds nb(p_[nt[0]], p_[nt[1]], p_[nt[2]]);
   near_.clear();
-  grid_.for_each_range_within(nb.centre, nb.reach + 2.5 * f_.spacing[nt[0]],
+  grid_.for_each_range_within(nb.centre, nb.reach + 2.5 * spacing(nt[0]),
                               [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s) {
       const std::uint32_t j = grid_.order()[s];

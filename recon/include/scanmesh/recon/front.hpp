@@ -104,11 +104,14 @@ struct FrontResult {
   /// Small components removed because they crossed another one (their points are outliers).
   std::size_t dropped_components = 0;
   /// The front's local spacing of a point is frames.spacing capped at this (2.5 x the median),
-  /// or, where the 27 grid cells around the point are sparser, at 2.5 x their median: a region
-  /// sampled sparsely as a whole connects, a point much sparser than its surroundings (the
-  /// fringe of a scan at grazing angles) cannot pull long triangles.
+  /// except on a region sampled sparsely as a whole (a point whose neighbours within three of
+  /// its spacings are at least 12, lie on a plane with it and are as sparse: 2.5 x their median
+  /// by area): such a region connects, while a point much sparser than its surroundings (a
+  /// stray reading) or a scatter of them in the air cannot pull long triangles.
   double spacing_cap = 0;
-  std::vector<float> spacing;  ///< the capped local spacing of every point, as the front used it
+  /// The capped local spacing of every point, as the front used it (the insertion of the points
+  /// it left out and the gap closing use it too).
+  std::vector<float> spacing;
 };
 
 /// Called with the name of each stage (or step of a stage) as it starts; the core keeps no
