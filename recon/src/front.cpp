@@ -359,7 +359,7 @@ class Builder {
     return n.dot(ref) < 0 ? -n : n;
   }
   /// Local spacing, capped (cap_spacing) so that a point much sparser than its surroundings
-  /// (the fringe of a scan at grazing angles, a stray reading) cannot pull long triangles.
+  /// (a stray reading) cannot pull long triangles.
   [[nodiscard]] double spacing(std::uint32_t v) const { return sp_[v]; }
   void cap_spacing(double median);
 
@@ -624,8 +624,8 @@ class Builder {
   static constexpr double kMaxSparsity = 2.5;
   /// cap_spacing: a sparse point keeps its own spacing only where at least kRegionPoints other
   /// points lie within kRegionRadius of its spacings and they form a plane (the smallest
-  /// eigenvalue's share of their scatter at most kRegionFlatness; a scatter in the air is about
-  /// 0.1, 7 stray readings were seen under 0.03).
+  /// eigenvalue's share of their scatter at most kRegionFlatness: a scatter in the air is about
+  /// 0.1, but groups of 6-7 stray readings were seen under 0.03, hence the count).
   static constexpr std::size_t kRegionPoints = 12;
   static constexpr double kRegionRadius = 3.0;
   static constexpr double kRegionFlatness = 0.03;

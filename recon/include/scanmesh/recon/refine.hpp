@@ -50,7 +50,8 @@ struct RefineStats {
 /// bending (the sum over edges of length x angle between the normals of the two triangles,
 /// Dyn-Levin-Rippa's data-dependent criterion, which turns edges along a sharp feature); on flat
 /// stretches the Delaunay criterion decides. `front.triangles`, `front.state` and
-/// `front.outliers` are updated. `grid` indexes `points`. Deterministic.
+/// `front.outliers` are updated. `grid` indexes `points`. The local spacing is the front's
+/// capped one (`front.spacing`) where given, else `frames.spacing`. Deterministic.
 RefineStats insert_unused_points(std::span<const Vec3> points, const LocalFrames& frames,
                                  const PointGrid& grid, FrontResult& front,
                                  const RefineOptions& options = {});
