@@ -6,6 +6,8 @@
 // SPDX-License-Identifier: MIT
 #include "scanmesh/recon/fill.hpp"
 
+#include "loop_measure.hpp"
+
 #include <Eigen/SparseCore>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
@@ -487,14 +489,13 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
     for (std::size_t li = 0; li < report.loops.size(); ++li) {
       const std::vector<std::uint32_t>& q = report.loops[li].vertices;
       if (!report.loops[li].closed || q.size() < 3 || q.size() > limit) continue;
-      double perimeter = 0, spacing = 0;
+      detail::LoopMeasure measure;
       for (std::size_t i = 0; i < q.size(); ++i) {
-        perimeter += (mesh.vertices[q[(i + 1) % q.size()]] - mesh.vertices[q[i]]).norm();
-        spacing += vertex_spacing[q[i]];
+        const std::uint32_t u = q[i], w = q[(i + 1) % q.size()];
+        measure.add(mesh.vertices[u], mesh.vertices[w], vertex_spacing[u], vertex_spacing[w]);
       }
-      // (not "<=": a loop through a non-finite coordinate is not a short one)
-      too_long[li] = !(perimeter * static_cast<double>(q.size()) <=
-                       options.max_perimeter_spacings * spacing);
+      // (a loop through a non-finite coordinate is not a short one)
+      too_long[li] = !measure.within(options.max_perimeter_spacings);
     }
   }
   std::vector<char> on_small_loop(mesh.vertices.size(), 0);

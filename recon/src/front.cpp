@@ -11,6 +11,7 @@
 
 #include "scanmesh/recon/intersections.hpp"
 #include "bulk.hpp"
+#include "loop_measure.hpp"
 #include "triangle_components.hpp"
 #include "triangle_shape.hpp"
 
@@ -1390,18 +1391,17 @@ void Builder::fill_small_loops() {
   for (std::uint32_t start = 0; start < initial; ++start) {
     if (!edges_[start].alive || seen[start]) continue;
     loop.clear();
-    double perimeter = 0, spacing_sum = 0;
+    detail::LoopMeasure measure;
     std::uint32_t e = start;
     do {
       if (e < initial) seen[e] = 1;
       loop.push_back(e);
-      perimeter += (p_[edges_[e].b] - p_[edges_[e].a]).norm();
-      spacing_sum += spacing(edges_[e].a);
-      e = edges_[e].next;
+      const FrontEdge& fe = edges_[e];
+      measure.add(p_[fe.a], p_[fe.b], spacing(fe.a), spacing(fe.b));
+      e = fe.next;
     } while (e != start && loop.size() <= opt_.fill_max_edges + 1);
     if (e != start || loop.size() > opt_.fill_max_edges) continue;
-    const double mean_spacing = spacing_sum / static_cast<double>(loop.size());
-    if (perimeter > opt_.fill_perimeter_factor * mean_spacing) continue;
+    if (!measure.within(opt_.fill_perimeter_factor)) continue;
     // Clip ears: always the one with the smallest opening angle whose closing edge is new.
     std::size_t guard = loop.size() * 2;
     std::uint32_t cur = start;

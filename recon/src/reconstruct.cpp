@@ -10,12 +10,13 @@
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/grid.hpp"
 #include "scanmesh/recon/normals.hpp"
+#include "loop_measure.hpp"
 
 namespace scanmesh::recon {
 namespace {
 
 /// Whether the mesh has a boundary loop of at most `max_edges` edges whose perimeter is at most
-/// `factor` times the mean spacing of its vertices (a sampling gap for the "gaps" stage). Only
+/// `factor` times its spacing (detail::LoopMeasure: a sampling gap for the "gaps" stage). Only
 /// the triangles with two boundary vertices (the front's final states) are looked at, so a mesh
 /// without such a loop costs one pass over the triangles, not a topology analysis.
 bool has_sampling_gap(std::span<const Vec3> points, std::span<const Triangle> triangles,
@@ -43,18 +44,18 @@ bool has_sampling_gap(std::span<const Vec3> points, std::span<const Triangle> tr
     return it != next.end() && it->first == u ? it->second : u;
   };
   for (const auto& [start, first] : next) {
-    double perimeter = (points[first] - points[start]).norm(), spacing_sum = spacing[start];
+    detail::LoopMeasure measure;
+    measure.add(points[start], points[first], spacing[start], spacing[first]);
     std::size_t edges = 1;
     std::uint32_t u = first;
     while (u != start && edges < max_edges) {
       const std::uint32_t v = successor(u);
       if (v == u) break;  // not a closed walk
-      perimeter += (points[v] - points[u]).norm();
-      spacing_sum += spacing[u];
+      measure.add(points[u], points[v], spacing[u], spacing[v]);
       ++edges;
       u = v;
     }
-    if (u == start && perimeter * static_cast<double>(edges) <= factor * spacing_sum) return true;
+    if (u == start && measure.within(factor)) return true;
   }
   return false;
 }

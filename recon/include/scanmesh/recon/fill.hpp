@@ -25,9 +25,10 @@ struct FillOptions {
   /// held), so that it continues the curvature of the surface. False: the patch is the loop's
   /// own vertices only (flat triangles, no new vertex).
   bool refine = true;
-  /// When positive, a loop is closed only if its perimeter is at most this many times the mean
-  /// spacing of its vertices (fill_holes' `vertex_spacing`): a sampling gap rather than a hole
-  /// of the part or a scan's border. 0: loops are chosen by their edge count alone.
+  /// When positive, a loop is closed only if its perimeter is at most this many times its
+  /// spacing (fill_holes' `vertex_spacing`: the larger of each edge's two ends, averaged over
+  /// the edges weighted by their lengths): a sampling gap rather than a hole of the part or a
+  /// scan's border. 0: loops are chosen by their edge count alone.
   double max_perimeter_spacings = 0;
   [[nodiscard]] std::vector<std::string> validate() const;
 };

@@ -54,7 +54,8 @@ struct FrontOptions {
   double hole_min_area = 20;
   double hole_min_width = 1.8;
   /// Boundary loops with at most this many edges and a perimeter of at most
-  /// `fill_perimeter_factor` local spacings are sampling gaps, closed at the end.
+  /// `fill_perimeter_factor` local spacings (the larger of each edge's ends, averaged over the
+  /// edges by length) are sampling gaps, closed at the end.
   std::size_t fill_max_edges = 8;
   double fill_perimeter_factor = 10.0;
   /// The new triangle must not cross or overlap the mesh (rule 3 of the front): each one is

@@ -1,0 +1,34 @@
+// The measure that tells a sampling gap from a hole: a boundary loop's perimeter against its
+// local spacing. Shared by the front's small-loop closing, the check for sampling gaps after the
+// insertion, and the final gap closing, so that the three agree on what a gap is.
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <algorithm>
+
+#include "scanmesh/recon/mesh.hpp"
+
+namespace scanmesh::recon::detail {
+
+/// Accumulates a closed loop edge by edge. Its spacing is the mean over its edges, weighted by
+/// their lengths, of the larger local spacing of each edge's two ends: along a seam between a
+/// dense and a coarse sampling, the loop's few long edges lie on the coarse side, and a plain
+/// mean over its vertices (most of them dense) took a gap one coarse spacing wide for a hole.
+/// On a loop sampled evenly both measures agree.
+class LoopMeasure {
+ public:
+  void add(const Vec3& a, const Vec3& b, double spacing_a, double spacing_b) {
+    const double len = (b - a).norm();
+    perimeter_ += len;
+    weighted_ += len * std::max(spacing_a, spacing_b);
+  }
+  [[nodiscard]] double perimeter() const { return perimeter_; }
+  [[nodiscard]] double spacing() const { return perimeter_ > 0 ? weighted_ / perimeter_ : 0; }
+  /// Whether the perimeter is at most `factor` spacings (false for a non-finite coordinate).
+  [[nodiscard]] bool within(double factor) const { return perimeter_ <= factor * spacing(); }
+
+ private:
+  double perimeter_ = 0, weighted_ = 0;
+};
+
+}  // namespace scanmesh::recon::detail
