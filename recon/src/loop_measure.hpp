@@ -22,7 +22,6 @@ class LoopMeasure {
     perimeter_ += len;
     weighted_ += len * std::max(spacing_a, spacing_b);
   }
-  [[nodiscard]] double perimeter() const { return perimeter_; }
   [[nodiscard]] double spacing() const { return perimeter_ > 0 ? weighted_ / perimeter_ : 0; }
   /// Whether the perimeter is at most `factor` spacings (false for a non-finite coordinate).
   [[nodiscard]] bool within(double factor) const { return perimeter_ <= factor * spacing(); }

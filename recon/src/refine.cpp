@@ -38,16 +38,14 @@ class Refiner {
   Refiner(std::span<const Vec3> points, const LocalFrames& frames, const PointGrid& grid,
           FrontResult& front, const RefineOptions& options)
       : p_(points), f_(frames), grid_(grid), fr_(front), tris_(front.triangles), o_(options),
-        cos_dev_(std::cos(options.max_normal_deviation_deg * std::numbers::pi / 180)) {}
+        cos_dev_(std::cos(options.max_normal_deviation_deg * std::numbers::pi / 180)),
+        spacing_(front.spacing.empty() ? std::span<const float>(frames.spacing)
+                                       : std::span<const float>(front.spacing)) {}
 
   RefineStats run();
 
  private:
-  /// The local spacing as the front capped it (a stray reading's own spacing can be many times
-  /// the surface's), or the frames' where the front gave none.
-  [[nodiscard]] double spacing(std::uint32_t v) const {
-    return fr_.spacing.empty() ? f_.spacing[v] : fr_.spacing[v];
-  }
+  [[nodiscard]] double spacing(std::uint32_t v) const { return spacing_[v]; }
   [[nodiscard]] bool complete(std::uint32_t v) const { return slot_[v] != kNone; }
   std::vector<std::uint32_t>& around(std::uint32_t v) { return lists_[slot_[v]]; }
   void make_complete(std::uint32_t v) {
@@ -118,6 +116,9 @@ class Refiner {
   std::vector<Triangle>& tris_;
   const RefineOptions& o_;
   const double cos_dev_;
+  /// The local spacing as the front capped it (a stray reading's own spacing can be many times
+  /// the surface's), or the frames' where the front gave none.
+  const std::span<const float> spacing_;
   std::vector<std::uint32_t> slot_;  // per vertex: its triangle list in lists_, or kNone
   std::vector<std::vector<std::uint32_t>> lists_;
   std::vector<std::uint32_t> cand_, near_;
