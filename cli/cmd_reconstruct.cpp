@@ -213,6 +213,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["relaxed_triangles"] = res.relaxed_triangles;
     j["filled_gaps"] = res.filled_gaps;
     j["closed_gaps"] = res.gaps.filled;
+    j["zipped_slits"] = res.zip.zipped;
     j["untangled_gaps"] = res.untangle.closed;
     j["untangle_removed_triangles"] = res.untangle.removed;
     j["removed_fan_triangles"] = res.removed_fan_triangles;

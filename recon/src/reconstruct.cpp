@@ -15,13 +15,22 @@
 namespace scanmesh::recon {
 namespace {
 
-/// Whether the mesh has a boundary loop of at most `max_edges` edges whose perimeter is at most
-/// `factor` times its spacing (detail::LoopMeasure: a sampling gap for the "gaps" stage). Only
-/// the triangles with two boundary vertices (the front's final states) are looked at, so a mesh
-/// without such a loop costs one pass over the triangles, not a topology analysis.
-bool has_sampling_gap(std::span<const Vec3> points, std::span<const Triangle> triangles,
+/// What the boundary loops left after the front and the insertion need.
+struct LoopCheck {
+  /// A loop of at most `max_edges` edges whose perimeter is at most `factor` times its spacing
+  /// (detail::LoopMeasure): a sampling gap for the "gaps" stage.
+  bool gap = false;
+  /// A boundary edge with the loop vertex after or before it lying along it (within `band`
+  /// times its spacing of the line, between the ends): a slit for zip_slits.
+  bool slit = false;
+};
+
+/// Only the triangles with two boundary vertices (the front's final states) are looked at, so a
+/// mesh without such loops costs one pass over the triangles, not a topology analysis.
+LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> triangles,
                       std::span<const VertexState> state, std::span<const float> spacing,
-                      std::size_t max_edges, double factor) {
+                      std::size_t max_edges, double factor, double band) {
+  LoopCheck check;
   auto on_boundary = [&](std::uint32_t v) { return state[v] == VertexState::kBoundary; };
   std::vector<std::uint64_t> half;  // half-edges between boundary vertices: (from << 32) | to
   for (const Triangle& t : triangles)
@@ -32,32 +41,49 @@ bool has_sampling_gap(std::span<const Vec3> points, std::span<const Triangle> tr
   auto has = [&](std::uint32_t u, std::uint32_t v) {
     return std::binary_search(half.begin(), half.end(), (std::uint64_t{u} << 32) | v);
   };
-  // The boundary half-edges (no twin), by their start; a vertex-manifold mesh has one per
-  // boundary vertex (more only where two holes touch: the walk then just follows the first).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> next;
+  // The boundary half-edges (no twin), by their start and by their end; a vertex-manifold mesh
+  // has one of each per boundary vertex (more only where two holes touch: the walk then just
+  // follows the first).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> next, prev;
   for (const std::uint64_t h : half) {
     const auto u = static_cast<std::uint32_t>(h >> 32), v = static_cast<std::uint32_t>(h);
-    if (!has(v, u)) next.emplace_back(u, v);
+    if (has(v, u)) continue;
+    next.emplace_back(u, v);
+    prev.emplace_back(v, u);
   }
-  auto successor = [&](std::uint32_t u) {
-    const auto it = std::lower_bound(next.begin(), next.end(), std::make_pair(u, std::uint32_t{0}));
-    return it != next.end() && it->first == u ? it->second : u;
+  std::sort(prev.begin(), prev.end());
+  auto step = [](const std::vector<std::pair<std::uint32_t, std::uint32_t>>& links, std::uint32_t u) {
+    const auto it = std::lower_bound(links.begin(), links.end(), std::make_pair(u, std::uint32_t{0}));
+    return it != links.end() && it->first == u ? it->second : u;
+  };
+  // x lies along u -> v: strictly between the ends, within band spacings of the line.
+  auto along = [&](std::uint32_t u, std::uint32_t v, std::uint32_t x) {
+    if (x == u || x == v) return false;
+    const Vec3 e = points[v] - points[u];
+    const double len2 = e.squaredNorm();
+    if (!(len2 > 0)) return false;
+    const Vec3 q = points[x] - points[u];
+    const double at = q.dot(e) / len2;
+    return at > 0 && at < 1 && (q - at * e).norm() <= band * spacing[x];
   };
   for (const auto& [start, first] : next) {
+    if (!check.slit && band > 0)
+      check.slit = along(start, first, step(next, first)) || along(start, first, step(prev, start));
+    if (check.gap) continue;
     detail::LoopMeasure measure;
     measure.add(points[start], points[first], spacing[start], spacing[first]);
     std::size_t edges = 1;
     std::uint32_t u = first;
     while (u != start && edges < max_edges) {
-      const std::uint32_t v = successor(u);
+      const std::uint32_t v = step(next, u);
       if (v == u) break;  // not a closed walk
       measure.add(points[u], points[v], spacing[u], spacing[v]);
       ++edges;
       u = v;
     }
-    if (u == start && measure.within(factor)) return true;
+    check.gap = u == start && measure.within(factor);
   }
-  return false;
+  return check;
 }
 
 void check_values(std::span<const Vec3> points) {
@@ -125,6 +151,8 @@ std::vector<std::string> ReconstructOptions::validate() const {
   for (auto& e : fill.validate()) errors.push_back(std::move(e));
   if (cube_mode == CubeMode::kFixed && !(cube_mm > 0 && std::isfinite(cube_mm)))
     errors.push_back("cube size must be a positive number");
+  if (!(zip_band >= 0 && zip_band <= 2))
+    errors.push_back("slit zipping band must be in [0, 2] spacings");
   if (normals.neighbours < 6 || normals.neighbours > 64)
     errors.push_back("normal neighbourhood must be in [6, 64]");
   return errors;
@@ -285,11 +313,13 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.mesh.vertices.resize(used);
   for (std::size_t v = 0; v < reduced.size(); ++v)
     if (remap[v] != 0xffffffffu) res.mesh.vertices[remap[v]] = reduced[v];
-  const bool gaps = options.close_gaps && options.front.fill_max_edges > 0 &&
-                    has_sampling_gap(reduced, fr.triangles, fr.state, spacing,
-                                     options.front.fill_max_edges,
-                                     options.front.fill_perimeter_factor);
-  if (!gaps) std::vector<float>().swap(spacing);
+  const LoopCheck loops = options.close_gaps
+                              ? check_loops(reduced, fr.triangles, fr.state, spacing,
+                                            options.front.fill_max_edges,
+                                            options.front.fill_perimeter_factor, options.zip_band)
+                              : LoopCheck{};
+  const bool gaps = options.close_gaps && options.front.fill_max_edges > 0 && loops.gap;
+  if (!gaps && !loops.slit) std::vector<float>().swap(spacing);
   res.mesh.triangles = std::move(fr.triangles);
   for (Triangle& t : res.mesh.triangles)
     for (std::uint32_t& v : t) v = remap[v];
@@ -309,19 +339,28 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.bulk_patches = fr.bulk_patches;
   res.bulk_triangles = fr.bulk_triangles;
   res.dropped_components = fr.dropped_components;
-  if (gaps) {
+  if (gaps || loops.slit) {
     stage("gaps");
     std::vector<float> vertex_spacing(used);
     for (std::size_t v = 0; v < reduced.size(); ++v)
       if (remap[v] != 0xffffffffu) vertex_spacing[remap[v]] = spacing[v];
     std::vector<float>().swap(spacing);
-    FillOptions gap_fill;
-    gap_fill.max_edges = options.front.fill_max_edges;
-    gap_fill.max_perimeter_spacings = options.front.fill_perimeter_factor;
-    gap_fill.refine = false;
-    res.gaps = fill_holes(res.mesh, gap_fill, vertex_spacing);
-    if (options.untangle_gaps && res.gaps.crossing > 0)
-      res.untangle = untangle_gaps(res.mesh, gap_fill, vertex_spacing, res.gaps);
+    if (loops.slit) {
+      std::vector<std::uint8_t> boundary(used, 0);
+      for (std::size_t v = 0; v < reduced.size(); ++v)
+        if (remap[v] != 0xffffffffu) boundary[remap[v]] = fr.state[v] == VertexState::kBoundary ? 1 : 0;
+      res.zip = zip_slits(res.mesh, vertex_spacing, options.zip_band, boundary);
+    }
+    // What a zip leaves of a loop may be a sampling gap now.
+    if (options.front.fill_max_edges > 0 && (gaps || res.zip.zipped > 0)) {
+      FillOptions gap_fill;
+      gap_fill.max_edges = options.front.fill_max_edges;
+      gap_fill.max_perimeter_spacings = options.front.fill_perimeter_factor;
+      gap_fill.refine = false;
+      res.gaps = fill_holes(res.mesh, gap_fill, vertex_spacing);
+      if (options.untangle_gaps && res.gaps.crossing > 0)
+        res.untangle = untangle_gaps(res.mesh, gap_fill, vertex_spacing, res.gaps);
+    }
   }
   if (options.fill.max_edges > 0) {
     stage("fill");

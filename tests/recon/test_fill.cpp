@@ -465,3 +465,78 @@ TEST_CASE("untangle_gaps leaves a gap alone when untangling it would drop a poin
   CHECK(m.triangles == before.triangles);
   CHECK(m.vertices.size() == before.vertices.size());
 }
+
+namespace {
+
+/// A dense strip (columns x = -0.2 and x = 0, rows 0.2 apart from y = -0.2 to 1.2) and a coarse
+/// point w to its right, joined to the x = 0 column by three triangles: across the rows below
+/// y = 0 and above y = 1, and one whose long edge runs from y = 1 down to y = 0. The column's
+/// points between lie `offset` to the left of that edge, so the two sides leave a slit (the
+/// loop a0 -> a1 -> ... -> a5 -> a0), as where a coarse row meets a dense one.
+Mesh slit_mesh(double offset) {
+  Mesh m;
+  for (int i = -1; i <= 6; ++i) {
+    const double y = 0.2 * i;
+    m.vertices.emplace_back(-0.2, y, 0);                                       // b(i)
+    m.vertices.emplace_back(i >= 1 && i <= 4 ? -offset : 0.0, y, 0.0);        // a(i)
+  }
+  auto b = [](int i) { return static_cast<std::uint32_t>(2 * (i + 1)); };
+  auto a = [](int i) { return static_cast<std::uint32_t>(2 * (i + 1) + 1); };
+  for (int i = -1; i < 6; ++i) {
+    m.triangles.push_back({b(i), a(i), a(i + 1)});
+    m.triangles.push_back({b(i), a(i + 1), b(i + 1)});
+  }
+  m.vertices.emplace_back(1.0, 0.5, 0.0);  // w = 16
+  m.triangles.push_back({a(0), a(-1), 16});
+  m.triangles.push_back({a(5), a(0), 16});
+  m.triangles.push_back({a(6), a(5), 16});
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("zip_slits splits the coarse triangle at the dense row's points along its edge",
+          "[recon][fill]") {
+  Mesh m = slit_mesh(0.03);
+  REQUIRE(analyze(m).boundary_loops == 2);  // the outer border and the slit
+  const std::vector<float> spacing(m.vertices.size(), 0.2f);
+  const auto triangles = m.triangles.size();
+  const auto st = scanmesh::recon::zip_slits(m, spacing);
+  CHECK(st.zipped == 1);
+  CHECK(st.split_points == 4);
+  CHECK(st.refused == 0);
+  const auto r = analyze(m);
+  CHECK(r.boundary_loops == 1);
+  CHECK(r.non_manifold_edges == 0);
+  CHECK(r.non_manifold_vertices == 0);
+  CHECK(r.orientation_consistent);
+  CHECK(r.components == 1);
+  CHECK(m.triangles.size() == triangles + 4);  // one triangle became a fan of five
+  CHECK(m.vertices.size() == 17);              // no vertex added or moved
+  CHECK(find_self_intersections(m).pairs == 0);
+  // Every fan triangle has the coarse point as its apex and faces +z as the strip does.
+  std::size_t fan = 0;
+  for (const Triangle& t : m.triangles) {
+    if (t[0] != 16 && t[1] != 16 && t[2] != 16) continue;
+    ++fan;
+    const Vec3 n = (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]);
+    CHECK(n.z() > 0);
+  }
+  CHECK(fan == 7);  // the fan of five and the two triangles beyond the slit
+}
+
+TEST_CASE("zip_slits leaves a loop whose points lie off the edge: a hole, not a slit",
+          "[recon][fill]") {
+  // 0.15 off the line, beyond half the spacing (0.1): the column bends away from the edge.
+  Mesh m = slit_mesh(0.15);
+  const Mesh before = m;
+  const std::vector<float> spacing(m.vertices.size(), 0.2f);
+  const auto st = scanmesh::recon::zip_slits(m, spacing);
+  CHECK(st.zipped == 0);
+  CHECK(m.triangles == before.triangles);
+  CHECK(analyze(m).boundary_loops == 2);
+  // A band of 0 zips nothing either; too few spacings is an error.
+  Mesh near = slit_mesh(0.03);
+  CHECK(scanmesh::recon::zip_slits(near, spacing, 0.0).zipped == 0);
+  CHECK_THROWS_AS(scanmesh::recon::zip_slits(near, std::vector<float>(3, 0.2f)), std::invalid_argument);
+}

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
@@ -76,5 +77,27 @@ struct UntangleStats {
 /// left alone. The genus can change (a spike across a wall is a handle).
 UntangleStats untangle_gaps(Mesh& mesh, const FillOptions& options,
                             std::span<const float> vertex_spacing, const FillStats& first);
+
+struct ZipStats {
+  std::size_t zipped = 0;        ///< boundary edges split (their triangle replaced by a fan)
+  std::size_t split_points = 0;  ///< loop vertices those splits took in
+  std::size_t refused = 0;       ///< zips taken back: their fan crossed the mesh
+};
+
+/// Zippering of slits (Turk and Levoy's zipper): where the boundary vertices that follow or
+/// precede a boundary edge u -> v on its loop lie along it (within `band` times their
+/// `vertex_spacing` of the line, in order along it, strictly between u and v), the triangle on
+/// the edge, (u, v, w), is replaced by the fan from w over u, those vertices, v. The loop edges
+/// between them close; what is left of the loop (nothing, for a slit) stays a loop. Such a slit
+/// is what the front leaves where a coarse row meets a dense one: a long edge of the coarse side
+/// with the dense row's points lying along it, each triangle of the fan too thin for the front's
+/// angle rules. A fan is made only when it adds no edge the mesh has, no angle under 1 degree,
+/// no fold (60 degrees from the old triangle, 90 from those across the edges it closes), and
+/// crosses nothing (else that edge is left as it was). Rounds repeat on the new loops (at most
+/// 8). Vertices never move or appear; a manifold, consistently oriented mesh stays so.
+/// `maybe_boundary` (one flag per vertex, optional): the vertices that may lie on a boundary
+/// (the others are known inner ones); the work is then only around those.
+ZipStats zip_slits(Mesh& mesh, std::span<const float> vertex_spacing, double band = 0.5,
+                   std::span<const std::uint8_t> maybe_boundary = {});
 
 }  // namespace scanmesh::recon

@@ -40,6 +40,10 @@ struct ReconstructOptions {
   /// Those gaps that stay open because their patch would cross the mesh are untangled where a
   /// few triangles reach through them (fill.hpp: untangle_gaps). Off only for comparison.
   bool untangle_gaps = true;
+  /// Slits (a boundary edge with its loop's next or previous vertices lying along it, within
+  /// this many of their spacings of it: where a coarse row meets a dense one) are zipped before
+  /// the gaps are closed (fill.hpp: zip_slits), as part of close_gaps; 0: none.
+  double zip_band = 0.5;
   /// Off by default: real holes stay open. On request, small loops are closed at the end.
   FillOptions fill;
   /// Reports every bad field at once (empty when valid).
@@ -58,6 +62,7 @@ struct ReconstructResult {
   std::size_t far_points = 0;  ///< of which far points (the last ones in `outliers`)
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
   RefineStats refine;  ///< points the front left out that were inserted afterwards
+  ZipStats zip;        ///< slits zipped at the end (options.close_gaps, zip_band)
   FillStats gaps;      ///< sampling gaps closed at the end (options.close_gaps)
   /// Gaps left open because their patch would cross the mesh, untangled (fill.hpp).
   UntangleStats untangle;
