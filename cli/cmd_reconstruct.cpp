@@ -247,6 +247,9 @@ int run_reconstruct(const ReconstructArgs& args) {
               << "components       " << rep.components << "\n"
               << "genus            " << rep.genus << "\n"
               << "inserted points  " << res.refine.inserted << " (left out by the front)\n";
+    if (res.zip.zipped > 0)
+      std::cout << "zipped slits     " << res.zip.zipped << " (" << res.zip.split_points
+                << " border points a long edge ran along, joined to it)\n";
     if (res.gaps.filled > 0)
       std::cout << "closed gaps      " << res.gaps.filled
                 << " (small loops the front left, closed with their own vertices)\n";
