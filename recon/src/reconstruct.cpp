@@ -151,6 +151,9 @@ std::vector<std::string> ReconstructOptions::validate() const {
   for (auto& e : fill.validate()) errors.push_back(std::move(e));
   if (cube_mode == CubeMode::kFixed && !(cube_mm > 0 && std::isfinite(cube_mm)))
     errors.push_back("cube size must be a positive number");
+  if (gap_max_edges > FillOptions::kLimit)
+    errors.push_back("sampling gaps are closed up to " + std::to_string(FillOptions::kLimit) +
+                     " edges, got " + std::to_string(gap_max_edges));
   if (!(zip_band >= 0 && zip_band <= 2))
     errors.push_back("slit zipping band must be in [0, 2] spacings");
   if (normals.neighbours < 6 || normals.neighbours > 64)
@@ -315,10 +318,10 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     if (remap[v] != 0xffffffffu) res.mesh.vertices[remap[v]] = reduced[v];
   const LoopCheck loops = options.close_gaps
                               ? check_loops(reduced, fr.triangles, fr.state, spacing,
-                                            options.front.fill_max_edges,
+                                            options.gap_max_edges,
                                             options.front.fill_perimeter_factor, options.zip_band)
                               : LoopCheck{};
-  const bool gaps = options.close_gaps && options.front.fill_max_edges > 0 && loops.gap;
+  const bool gaps = options.close_gaps && options.gap_max_edges > 0 && loops.gap;
   if (!gaps && !loops.slit) std::vector<float>().swap(spacing);
   res.mesh.triangles = std::move(fr.triangles);
   for (Triangle& t : res.mesh.triangles)
@@ -352,9 +355,9 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
       res.zip = zip_slits(res.mesh, vertex_spacing, options.zip_band, boundary);
     }
     // What a zip leaves of a loop may be a sampling gap now.
-    if (options.front.fill_max_edges > 0 && (gaps || res.zip.zipped > 0)) {
+    if (options.gap_max_edges > 0 && (gaps || res.zip.zipped > 0)) {
       FillOptions gap_fill;
-      gap_fill.max_edges = options.front.fill_max_edges;
+      gap_fill.max_edges = options.gap_max_edges;
       gap_fill.max_perimeter_spacings = options.front.fill_perimeter_factor;
       gap_fill.refine = false;
       res.gaps = fill_holes(res.mesh, gap_fill, vertex_spacing);

@@ -488,7 +488,7 @@ static std::vector<Vec3> two_density_plate(double ratio) {
 }
 
 TEST_CASE("a region sampled many times more coarsely than the rest connects", "[recon]") {
-  for (const double ratio : {6.0, 12.0}) {
+  for (const double ratio : {6.0, 12.0, 15.0}) {
     CAPTURE(ratio);
     const auto pts = two_density_plate(ratio);
     const auto r = reconstruct(pts);
@@ -501,9 +501,11 @@ TEST_CASE("a region sampled many times more coarsely than the rest connects", "[
     // The plate's border, and at most a gap along the seam between the two samplings (a row of
     // 0.2 spacings meeting one of `ratio` times that cannot be joined with angles of 8 degrees
     // or more everywhere: the front leaves slits, a coarse edge with the dense row's points
-    // along it, which zip_slits closes). Measured 1 and 2 loops; 4 and 4 before the zipping,
-    // 4 and 9 while the gap closing took a loop's spacing as the mean over its vertices.
-    CHECK(rep.boundary_loops <= 3);
+    // along it, which zip_slits closes, and fans of many dense points onto a coarse one, which
+    // the gap closing takes up to 64 edges). Measured 1 loop at each ratio; 1, 2 and 4 with
+    // gaps of at most 8 edges; at 6 and 12, 4 and 4 before the zipping, 4 and 9 while the gap
+    // closing took a loop's spacing as the mean over its vertices.
+    CHECK(rep.boundary_loops <= 2);
     CHECK(r.zip.zipped >= 1);
     // No triangle longer than the coarse region's own reach (relaxed radius factor 2.6, a
     // candidate up to 1.5 spacings further, the jitter).

@@ -32,11 +32,15 @@ struct ReconstructOptions {
   FrontOptions front;
   NormalOptions normals;
   RefineOptions refine;
-  /// Sampling gaps the front and the insertion left (loops of at most front.fill_max_edges
-  /// edges and front.fill_perimeter_factor local spacings) are closed at the end with their own
-  /// vertices (the minimum-weight patch of fill.hpp, never crossing the mesh). Off only for
-  /// comparison.
+  /// Sampling gaps the front and the insertion left (loops of at most gap_max_edges edges and
+  /// front.fill_perimeter_factor local spacings) are closed at the end with their own vertices
+  /// (the minimum-weight patch of fill.hpp, never crossing the mesh). Off only for comparison.
   bool close_gaps = true;
+  /// More than the front's own fill_max_edges (8): an evenly sampled loop within the perimeter
+  /// limit has about 10 edges at most anyway, while a gap on the seam between a dense and a
+  /// coarse sampling has many short edges on its dense side (a fan of 30 dense points onto one
+  /// coarse point). The search costs O(n^3) for a loop of n edges.
+  std::size_t gap_max_edges = 64;
   /// Those gaps that stay open because their patch would cross the mesh are untangled where a
   /// few triangles reach through them (fill.hpp: untangle_gaps). Off only for comparison.
   bool untangle_gaps = true;
