@@ -1,10 +1,12 @@
 // The measure that tells a sampling gap from a hole: a boundary loop's perimeter against its
 // local spacing. Shared by the front's small-loop closing, the check for sampling gaps after the
-// insertion, and the final gap closing, so that the three agree on what a gap is.
+// insertion, and the final gap closing, so that the three agree on what a gap is; and the test
+// of a slit (a loop vertex lying along a loop edge), shared by that check and zip_slits.
 // SPDX-License-Identifier: MIT
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 
 #include "scanmesh/recon/mesh.hpp"
 
@@ -29,5 +31,16 @@ class LoopMeasure {
  private:
   double perimeter_ = 0, weighted_ = 0;
 };
+
+/// Whether x lies within `tol` of the line through u and v; `at`: how far along it from u, in
+/// the units of the points (the caller tells whether that is between u and v).
+inline bool lies_along(const Vec3& u, const Vec3& v, const Vec3& x, double tol, double& at) {
+  const Vec3 e = v - u;
+  const double len = e.norm();
+  if (!(len > 0)) return false;
+  const Vec3 dir = e / len, q = x - u;
+  at = q.dot(dir);
+  return (q - at * dir).norm() <= tol;
+}
 
 }  // namespace scanmesh::recon::detail

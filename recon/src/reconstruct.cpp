@@ -58,13 +58,10 @@ LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> tr
   };
   // x lies along u -> v: strictly between the ends, within band spacings of the line.
   auto along = [&](std::uint32_t u, std::uint32_t v, std::uint32_t x) {
-    if (x == u || x == v) return false;
-    const Vec3 e = points[v] - points[u];
-    const double len2 = e.squaredNorm();
-    if (!(len2 > 0)) return false;
-    const Vec3 q = points[x] - points[u];
-    const double at = q.dot(e) / len2;
-    return at > 0 && at < 1 && (q - at * e).norm() <= band * spacing[x];
+    double at = 0;
+    return x != u && x != v &&
+           detail::lies_along(points[u], points[v], points[x], band * spacing[x], at) && at > 0 &&
+           at < (points[v] - points[u]).norm();
   };
   for (const auto& [start, first] : next) {
     if (!check.slit && band > 0)

@@ -16,14 +16,19 @@
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/intersections.hpp"
 
+#include "loop_measure.hpp"
+#include "triangle_shape.hpp"
+
 namespace scanmesh::recon {
 namespace {
 
 constexpr std::uint32_t kNone = 0xffffffffu;
 
 std::uint64_t directed_key(std::uint32_t u, std::uint32_t v) { return (std::uint64_t{u} << 32) | v; }
-std::uint64_t undirected_key(std::uint32_t u, std::uint32_t v) {
-  return u < v ? directed_key(u, v) : directed_key(v, u);
+
+/// The corner of t that is neither u nor v.
+std::uint32_t third(const Triangle& t, std::uint32_t u, std::uint32_t v) {
+  return t[0] != u && t[0] != v ? t[0] : (t[1] != u && t[1] != v ? t[1] : t[2]);
 }
 
 /// The mesh's half-edges (sorted, with their triangle) and its boundary: for each vertex with
@@ -31,7 +36,6 @@ std::uint64_t undirected_key(std::uint32_t u, std::uint32_t v) {
 /// elsewhere: inner vertices, and vertices where two loops touch).
 struct Boundary {
   std::vector<std::pair<std::uint64_t, std::uint32_t>> half;  // (u << 32 | v, triangle)
-  std::vector<std::uint64_t> edges;                           // undirected, sorted
   std::vector<std::uint32_t> next, prev, tri;                 // tri: the triangle on u -> next
 
   /// Over the triangles with a corner flagged in `near` (the others cannot hold a boundary
@@ -45,11 +49,6 @@ struct Boundary {
       for (int k = 0; k < 3; ++k) half.emplace_back(directed_key(tr[k], tr[(k + 1) % 3]), t);
     }
     std::sort(half.begin(), half.end());
-    edges.reserve(half.size());
-    for (const auto& [key, t] : half)
-      edges.push_back(undirected_key(static_cast<std::uint32_t>(key >> 32), static_cast<std::uint32_t>(key)));
-    std::sort(edges.begin(), edges.end());
-    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
     std::vector<std::uint8_t> outs(vertices, 0), ins(vertices, 0);
     for (const auto& [key, t] : half) {
       const auto u = static_cast<std::uint32_t>(key >> 32), v = static_cast<std::uint32_t>(key);
@@ -68,16 +67,14 @@ struct Boundary {
       if (prev[v] != kNone && next[prev[v]] != v) prev[v] = kNone;
     }
   }
-  [[nodiscard]] bool has_half(std::uint32_t u, std::uint32_t v) const {
-    const auto it = std::lower_bound(half.begin(), half.end(), std::make_pair(directed_key(u, v), std::uint32_t{0}));
-    return it != half.end() && it->first == directed_key(u, v);
-  }
+  [[nodiscard]] bool has_half(std::uint32_t u, std::uint32_t v) const { return triangle_on(u, v) != kNone; }
   [[nodiscard]] std::uint32_t triangle_on(std::uint32_t u, std::uint32_t v) const {
     const auto it = std::lower_bound(half.begin(), half.end(), std::make_pair(directed_key(u, v), std::uint32_t{0}));
     return it != half.end() && it->first == directed_key(u, v) ? it->second : kNone;
   }
+  /// (the edges at a vertex flagged in `near` are all here)
   [[nodiscard]] bool has_edge(std::uint32_t u, std::uint32_t v) const {
-    return std::binary_search(edges.begin(), edges.end(), undirected_key(u, v));
+    return has_half(u, v) || has_half(v, u);
   }
 };
 
@@ -102,7 +99,7 @@ ZipStats zip_slits(Mesh& mesh, std::span<const float> vertex_spacing, double ban
   ZipStats stats;
   const std::vector<Vec3>& p = mesh.vertices;
   // Fan triangles may be thin (a coarse point's fan onto a dense row), but not this thin.
-  const double sin_min_angle = std::sin(1.0 * std::numbers::pi / 180);
+  const double cos_min_angle = std::cos(1.0 * std::numbers::pi / 180);
   std::vector<std::uint64_t> refused;  // split edges (u << 32 | v) whose fan crossed the mesh
   constexpr int kRounds = 8;
   // The vertices that may lie on a boundary: the caller's, or every one. A zip only closes
@@ -124,16 +121,12 @@ ZipStats zip_slits(Mesh& mesh, std::span<const float> vertex_spacing, double ban
       const std::uint32_t t = bd.tri[u];
       if (used_tri[t]) continue;
       const Triangle& tr = mesh.triangles[t];
-      const std::uint32_t w = tr[0] != u && tr[0] != v ? tr[0] : (tr[1] != u && tr[1] != v ? tr[1] : tr[2]);
-      const Vec3 e = p[v] - p[u];
-      const double len = e.norm();
+      const std::uint32_t w = third(tr, u, v);
+      const double len = (p[v] - p[u]).norm();
       if (!(len > 0)) continue;
-      const Vec3 dir = e / len;
-      // Where x lies along u -> v and how far off the line.
+      // Whether x lies along u -> v, and where.
       auto along = [&](std::uint32_t x, double& at) {
-        const Vec3 q = p[x] - p[u];
-        at = q.dot(dir);
-        return (q - at * dir).norm() <= band * vertex_spacing[x];
+        return detail::lies_along(p[u], p[v], p[x], band * vertex_spacing[x], at);
       };
       // Forward from v: the loop's vertices after v, back along the edge towards u.
       fwd.clear();
@@ -172,10 +165,9 @@ ZipStats zip_slits(Mesh& mesh, std::span<const float> vertex_spacing, double ban
         if (used_vertex[a] || (i > 0 && bd.has_edge(a, w))) ok = false;
         const Vec3 n = normal_of(p, a, b, w);
         const double twice_area = n.norm();
-        const double lab = (p[b] - p[a]).norm(), lbw = (p[w] - p[b]).norm(), lwa = (p[a] - p[w]).norm();
-        // the smallest angle's sine: twice the area over the product of its two sides
-        const double sin_small = twice_area / std::max({lab * lbw, lbw * lwa, lwa * lab});
-        if (!(twice_area > 0) || sin_small < sin_min_angle || n.dot(nt) < 0.5 * twice_area) ok = false;
+        if (!(twice_area > 0) || detail::min_angle_cos(p[a], p[b], p[w]) > cos_min_angle ||
+            n.dot(nt) < 0.5 * twice_area)
+          ok = false;
         if (!ok || !bd.has_edge(a, b)) continue;
         const std::uint32_t across = bd.triangle_on(b, a);
         if (across == kNone || bd.has_half(a, b) ||
@@ -200,9 +192,7 @@ ZipStats zip_slits(Mesh& mesh, std::span<const float> vertex_spacing, double ban
     std::vector<std::uint32_t> zip_of;
     for (std::uint32_t zi = 0; zi < zips.size(); ++zi) {
       const Zip& z = zips[zi];
-      const Triangle& tr = mesh.triangles[z.t];
-      const std::uint32_t u = z.s.front(), v = z.s.back();
-      const std::uint32_t w = tr[0] != u && tr[0] != v ? tr[0] : (tr[1] != u && tr[1] != v ? tr[1] : tr[2]);
+      const std::uint32_t w = third(mesh.triangles[z.t], z.s.front(), z.s.back());
       for (std::size_t i = 0; i + 1 < z.s.size(); ++i) {
         kept.push_back({z.s[i], z.s[i + 1], w});
         zip_of.push_back(zi);
