@@ -7,7 +7,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <span>
 
+#include "scanmesh/recon/front.hpp"
 #include "scanmesh/recon/mesh.hpp"
 
 namespace scanmesh::recon::detail {
@@ -42,5 +45,22 @@ inline bool lies_along(const Vec3& u, const Vec3& v, const Vec3& x, double tol, 
   at = q.dot(dir);
   return (q - at * dir).norm() <= tol;
 }
+
+/// What the boundary loops left after the front and the insertion need.
+struct LoopCheck {
+  /// A loop of at most `max_edges` edges whose perimeter is at most `factor` times its spacing
+  /// (LoopMeasure): a sampling gap for the "gaps" stage.
+  bool gap = false;
+  /// A boundary edge with the loop vertex after or before it lying along it (within `band`
+  /// times its spacing of the line, between the ends): a slit for zip_slits.
+  bool slit = false;
+};
+
+/// Only the triangles with two boundary vertices (`state` kBoundary) are looked at, so a mesh
+/// without such loops costs one pass over the triangles, not a topology analysis; each loop is
+/// walked once (reconstruct.cpp).
+LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> triangles,
+                      std::span<const VertexState> state, std::span<const float> spacing,
+                      std::size_t max_edges, double factor, double band);
 
 }  // namespace scanmesh::recon::detail

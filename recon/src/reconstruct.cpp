@@ -13,20 +13,8 @@
 #include "loop_measure.hpp"
 
 namespace scanmesh::recon {
-namespace {
+namespace detail {
 
-/// What the boundary loops left after the front and the insertion need.
-struct LoopCheck {
-  /// A loop of at most `max_edges` edges whose perimeter is at most `factor` times its spacing
-  /// (detail::LoopMeasure): a sampling gap for the "gaps" stage.
-  bool gap = false;
-  /// A boundary edge with the loop vertex after or before it lying along it (within `band`
-  /// times its spacing of the line, between the ends): a slit for zip_slits.
-  bool slit = false;
-};
-
-/// Only the triangles with two boundary vertices (the front's final states) are looked at, so a
-/// mesh without such loops costs one pass over the triangles, not a topology analysis.
 LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> triangles,
                       std::span<const VertexState> state, std::span<const float> spacing,
                       std::size_t max_edges, double factor, double band) {
@@ -63,10 +51,8 @@ LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> tr
            detail::lies_along(points[u], points[v], points[x], band * spacing[x], at) && at > 0 &&
            at < (points[v] - points[u]).norm();
   };
-  for (const auto& [start, first] : next) {
-    if (!check.slit && band > 0)
-      check.slit = along(start, first, step(next, first)) || along(start, first, step(prev, start));
-    if (check.gap) continue;
+  // A loop of at most max_edges edges from start -> first, within the perimeter limit.
+  auto small_gap_from = [&](std::uint32_t start, std::uint32_t first) {
     detail::LoopMeasure measure;
     measure.add(points[start], points[first], spacing[start], spacing[first]);
     std::size_t edges = 1;
@@ -78,10 +64,49 @@ LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> tr
       ++edges;
       u = v;
     }
-    check.gap = u == start && measure.within(factor);
+    return u == start && measure.within(factor);
+  };
+  // Each loop is walked once, from its first boundary edge in (start, end) order, all the way
+  // round, and its edges are not walked again: every edge is visited once, whatever the loops'
+  // lengths. Where two loops touch at a vertex (the walk follows the first edge out of it and
+  // may not come back to its start), each edge of that walk gets the bounded walk of its own.
+  std::vector<std::uint8_t> walked(next.size(), 0);
+  std::vector<std::size_t> trail;
+  auto edge_from = [&](std::uint32_t u) {
+    const auto it = std::lower_bound(next.begin(), next.end(), std::make_pair(u, std::uint32_t{0}));
+    return it != next.end() && it->first == u ? static_cast<std::size_t>(it - next.begin()) : next.size();
+  };
+  for (std::size_t e0 = 0; e0 < next.size(); ++e0) {
+    const auto [start, first] = next[e0];
+    if (!check.slit && band > 0)
+      check.slit = along(start, first, step(next, first)) || along(start, first, step(prev, start));
+    if (check.gap || walked[e0]) continue;
+    walked[e0] = 1;
+    trail.assign(1, e0);
+    detail::LoopMeasure measure;
+    measure.add(points[start], points[first], spacing[start], spacing[first]);
+    std::uint32_t u = first;
+    while (u != start) {
+      const std::size_t e = edge_from(u);
+      if (e == next.size() || walked[e]) break;
+      walked[e] = 1;
+      trail.push_back(e);
+      const std::uint32_t v = next[e].second;
+      if (trail.size() <= max_edges) measure.add(points[u], points[v], spacing[u], spacing[v]);
+      u = v;
+    }
+    if (u == start)
+      check.gap = trail.size() <= max_edges && measure.within(factor);
+    else
+      for (std::size_t k = 0; k < trail.size() && !check.gap; ++k)
+        check.gap = small_gap_from(next[trail[k]].first, next[trail[k]].second);
   }
   return check;
 }
+
+}  // namespace detail
+
+namespace {
 
 void check_values(std::span<const Vec3> points) {
   if (points.empty()) throw GeometryError("no points: the input is empty");
@@ -313,11 +338,11 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.mesh.vertices.resize(used);
   for (std::size_t v = 0; v < reduced.size(); ++v)
     if (remap[v] != 0xffffffffu) res.mesh.vertices[remap[v]] = reduced[v];
-  const LoopCheck loops = options.close_gaps
-                              ? check_loops(reduced, fr.triangles, fr.state, spacing,
+  const detail::LoopCheck loops = options.close_gaps
+                              ? detail::check_loops(reduced, fr.triangles, fr.state, spacing,
                                             options.gap_max_edges,
                                             options.front.fill_perimeter_factor, options.zip_band)
-                              : LoopCheck{};
+                              : detail::LoopCheck{};
   const bool gaps = options.close_gaps && options.gap_max_edges > 0 && loops.gap;
   if (!gaps && !loops.slit) std::vector<float>().swap(spacing);
   res.mesh.triangles = std::move(fr.triangles);

@@ -7,7 +7,11 @@
 #include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <numbers>
+#include <numeric>
+#include <random>
 #include <stdexcept>
 #include <vector>
 
@@ -15,6 +19,7 @@
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
+#include "loop_measure.hpp"
 #include "support/shapes.hpp"
 
 namespace {
@@ -539,4 +544,91 @@ TEST_CASE("zip_slits leaves a loop whose points lie off the edge: a hole, not a 
   Mesh near = slit_mesh(0.03);
   CHECK(scanmesh::recon::zip_slits(near, spacing, 0.0).zipped == 0);
   CHECK_THROWS_AS(scanmesh::recon::zip_slits(near, std::vector<float>(3, 0.2f)), std::invalid_argument);
+}
+
+namespace {
+
+/// An n x n grid of unit squares in the plane z = 0, each split along its diagonal, with the
+/// triangles `skip` (by index: 2 per square, row by row) left out, the vertices numbered in a
+/// shuffled order when `seed` is not 0; every vertex on a loop is kBoundary.
+struct GridWithHoles {
+  std::vector<Vec3> points;
+  std::vector<Triangle> triangles;
+  std::vector<scanmesh::recon::VertexState> state;
+};
+GridWithHoles grid_with_holes(std::uint32_t n, const std::vector<std::size_t>& skip,
+                              unsigned seed = 0) {
+  GridWithHoles g;
+  const std::uint32_t w = n + 1;
+  std::vector<std::uint32_t> label(w * w);
+  std::iota(label.begin(), label.end(), 0u);
+  if (seed != 0) std::shuffle(label.begin(), label.end(), std::mt19937(seed));
+  g.points.resize(label.size());
+  for (std::uint32_t y = 0; y < w; ++y)
+    for (std::uint32_t x = 0; x < w; ++x) g.points[label[y * w + x]] = Vec3(x, y, 0);
+  for (std::uint32_t y = 0; y < n; ++y)
+    for (std::uint32_t x = 0; x < n; ++x) {
+      const std::uint32_t a = label[y * w + x], b = label[y * w + x + 1], c = label[(y + 1) * w + x + 1],
+                          d = label[(y + 1) * w + x];
+      g.triangles.push_back({a, b, c});
+      g.triangles.push_back({a, c, d});
+    }
+  for (auto it = skip.rbegin(); it != skip.rend(); ++it)
+    g.triangles.erase(g.triangles.begin() + static_cast<std::ptrdiff_t>(*it));
+  // Boundary: a vertex with an edge in one triangle only.
+  std::vector<std::array<std::uint32_t, 2>> edges;
+  for (const Triangle& t : g.triangles)
+    for (int k = 0; k < 3; ++k) edges.push_back({std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])});
+  std::sort(edges.begin(), edges.end());
+  g.state.assign(g.points.size(), scanmesh::recon::VertexState::kDone);
+  for (std::size_t i = 0; i < edges.size(); ++i) {
+    const bool single = (i == 0 || edges[i - 1] != edges[i]) && (i + 1 == edges.size() || edges[i + 1] != edges[i]);
+    if (single)
+      for (std::uint32_t v : edges[i]) g.state[v] = scanmesh::recon::VertexState::kBoundary;
+  }
+  return g;
+}
+
+}  // namespace
+
+TEST_CASE("check_loops finds a small loop as a sampling gap and a long border as none, walking "
+          "every loop once",
+          "[recon][fill]") {
+  using scanmesh::recon::detail::check_loops;
+  constexpr double kFactor = 10;  // perimeter limit in spacings
+  SECTION("the border of a 6 x 6 grid alone: 24 unit edges, no gap at any edge limit") {
+    const GridWithHoles g = grid_with_holes(6, {});
+    const std::vector<float> spacing(g.points.size(), 1.0f);
+    for (std::size_t max_edges : {8, 24, 64})
+      CHECK_FALSE(check_loops(g.points, g.triangles, g.state, spacing, max_edges, kFactor, 0).gap);
+    // With a spacing of 3, 24 edges of 1 are within 10 spacings: a gap once 24 edges are allowed.
+    const std::vector<float> coarse(g.points.size(), 3.0f);
+    CHECK_FALSE(check_loops(g.points, g.triangles, g.state, coarse, 23, kFactor, 0).gap);
+    CHECK(check_loops(g.points, g.triangles, g.state, coarse, 24, kFactor, 0).gap);
+  }
+  SECTION("one square missing in the middle: a 4-edge gap inside the border") {
+    const std::size_t sq = 2 * (3 * 6 + 3);  // square (3, 3)
+    const GridWithHoles g = grid_with_holes(6, {sq, sq + 1});
+    const std::vector<float> spacing(g.points.size(), 1.0f);
+    CHECK(check_loops(g.points, g.triangles, g.state, spacing, 8, kFactor, 0).gap);
+    CHECK_FALSE(check_loops(g.points, g.triangles, g.state, spacing, 3, kFactor, 0).gap);
+    // Its perimeter (4) is over twice the spacing: no gap under that limit.
+    CHECK_FALSE(check_loops(g.points, g.triangles, g.state, spacing, 8, 2.0, 0).gap);
+  }
+  SECTION("two missing triangles touching at one vertex: each is a 3-edge gap, found whichever "
+          "loop the walk through the shared vertex follows") {
+    // Squares (2, 2) and (3, 3) share the corner (3, 3): their triangles {a, c, d} of (2, 2)
+    // and {a, b, c} of (3, 3) meet there only (and the other halves likewise). Under some
+    // numberings the walk from the first edge of one hole turns into the other at the shared
+    // vertex and does not come back to its start.
+    for (const auto& skip : {std::vector<std::size_t>{2 * (2 * 6 + 2) + 1, 2 * (3 * 6 + 3)},
+                             std::vector<std::size_t>{2 * (2 * 6 + 2), 2 * (3 * 6 + 3) + 1}})
+      for (unsigned seed = 0; seed < 16; ++seed) {
+        CAPTURE(skip, seed);
+        const GridWithHoles g = grid_with_holes(6, skip, seed);
+        const std::vector<float> spacing(g.points.size(), 1.0f);
+        CHECK(check_loops(g.points, g.triangles, g.state, spacing, 8, kFactor, 0).gap);
+        CHECK_FALSE(check_loops(g.points, g.triangles, g.state, spacing, 2, kFactor, 0).gap);
+      }
+  }
 }
