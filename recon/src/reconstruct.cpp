@@ -31,8 +31,9 @@ LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> tr
   };
   // The boundary half-edges (no twin), by their start and by their end; a vertex-manifold mesh
   // has one of each per boundary vertex (more only where two holes touch: the walk then just
-  // follows the first).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> next, prev;
+  // follows the first; see below).
+  using Links = std::vector<std::pair<std::uint32_t, std::uint32_t>>;
+  Links next, prev;  // (from, to), (to, from)
   for (const std::uint64_t h : half) {
     const auto u = static_cast<std::uint32_t>(h >> 32), v = static_cast<std::uint32_t>(h);
     if (has(v, u)) continue;
@@ -40,20 +41,26 @@ LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> tr
     prev.emplace_back(v, u);
   }
   std::sort(prev.begin(), prev.end());
-  auto step = [](const std::vector<std::pair<std::uint32_t, std::uint32_t>>& links, std::uint32_t u) {
+  // The position of the first link out of u, or links.size().
+  auto link_from = [](const Links& links, std::uint32_t u) {
     const auto it = std::lower_bound(links.begin(), links.end(), std::make_pair(u, std::uint32_t{0}));
-    return it != links.end() && it->first == u ? it->second : u;
+    return it != links.end() && it->first == u ? static_cast<std::size_t>(it - links.begin()) : links.size();
+  };
+  // Where the first link out of u leads (u itself when there is none).
+  auto step = [&](const Links& links, std::uint32_t u) {
+    const std::size_t e = link_from(links, u);
+    return e < links.size() ? links[e].second : u;
   };
   // x lies along u -> v: strictly between the ends, within band spacings of the line.
   auto along = [&](std::uint32_t u, std::uint32_t v, std::uint32_t x) {
     double at = 0;
     return x != u && x != v &&
-           detail::lies_along(points[u], points[v], points[x], band * spacing[x], at) && at > 0 &&
+           lies_along(points[u], points[v], points[x], band * spacing[x], at) && at > 0 &&
            at < (points[v] - points[u]).norm();
   };
   // A loop of at most max_edges edges from start -> first, within the perimeter limit.
   auto small_gap_from = [&](std::uint32_t start, std::uint32_t first) {
-    detail::LoopMeasure measure;
+    LoopMeasure measure;
     measure.add(points[start], points[first], spacing[start], spacing[first]);
     std::size_t edges = 1;
     std::uint32_t u = first;
@@ -72,10 +79,6 @@ LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> tr
   // may not come back to its start), each edge of that walk gets the bounded walk of its own.
   std::vector<std::uint8_t> walked(next.size(), 0);
   std::vector<std::size_t> trail;
-  auto edge_from = [&](std::uint32_t u) {
-    const auto it = std::lower_bound(next.begin(), next.end(), std::make_pair(u, std::uint32_t{0}));
-    return it != next.end() && it->first == u ? static_cast<std::size_t>(it - next.begin()) : next.size();
-  };
   for (std::size_t e0 = 0; e0 < next.size(); ++e0) {
     const auto [start, first] = next[e0];
     if (!check.slit && band > 0)
@@ -83,11 +86,11 @@ LoopCheck check_loops(std::span<const Vec3> points, std::span<const Triangle> tr
     if (check.gap || walked[e0]) continue;
     walked[e0] = 1;
     trail.assign(1, e0);
-    detail::LoopMeasure measure;
+    LoopMeasure measure;
     measure.add(points[start], points[first], spacing[start], spacing[first]);
     std::uint32_t u = first;
     while (u != start) {
-      const std::size_t e = edge_from(u);
+      const std::size_t e = link_from(next, u);
       if (e == next.size() || walked[e]) break;
       walked[e] = 1;
       trail.push_back(e);
