@@ -95,27 +95,22 @@ else
             "triangle pairs); points sampled on its folds and flaps can leave extra small" \
             "boundary loops there (see 'scanmesh inspect $input')"
         fi
-        vertices=$(json_field "$report" vertices)
-        mean_edge=$(json_field "$report" mean_edge_length)
-        max_edge=$(json_field "$report" max_edge_length)
-        thin=$(json_field "$report" frac_min_angle_below_20)
         # A scan-like mesh has many evenly spaced vertices and well-shaped triangles; a CAD
         # export has few vertices, long edges across flat faces and slivers. Its vertices alone
-        # would leave the flat faces without points, so sample the surface instead. Measured
-        # share of triangles with an angle under 20 degrees: the Stanford scans' meshes 0.6-4.3 %
-        # (bunny at full and half resolution, igea), the casting's CAD mesh 17 % (from its
-        # 5,096 vertices genus 8 with 5 loops; from 100k points on its surface exactly genus 9,
-        # closed); fandisk 0 % (its vertices are evenly spread and mesh closed).
-        if awk -v v="$vertices" -v me="$mean_edge" -v xe="$max_edge" -v th="$thin" \
-          'BEGIN { exit !(v < 5000 || xe > 4 * me || th > 0.1) }'; then
+        # would leave the flat faces without points, so its surface is sampled instead
+        # (`scanmesh inspect` decides: scan_like_vertices).
+        if ! grep -q '"scan_like_vertices":true' <<<"$report"; then
           points="out/${name}_points.xyz"
-          echo "vertices are sparse or uneven ($vertices vertices, mean edge $mean_edge," \
-            "max edge $max_edge, $(awk -v t="$thin" 'BEGIN { printf "%.0f", 100 * t }')% thin" \
-            "triangles): sampling about $sample_points points from its surface"
+          thin=$(json_field "$report" frac_min_angle_below_20)
+          echo "vertices too few or uneven to be a scan (mean edge" \
+            "$(json_field "$report" mean_edge_length), max edge" \
+            "$(json_field "$report" max_edge_length)," \
+            "$(awk -v t="$thin" 'BEGIN { printf "%.0f", 100 * t }')% thin triangles):" \
+            "sampling about $sample_points points from its surface"
           "$scanmesh" generate --mesh-in "$input" --points "$sample_points" -o "$points"
           files+=("$points")
         else
-          echo "$vertices well-spread vertices: using them as the points"
+          echo "$(json_field "$report" vertices) well-spread vertices: using them as the points"
           points="$input"
         fi
       fi

@@ -27,6 +27,7 @@
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/mesh.hpp"
+#include "support/data.hpp"
 #include "support/process.hpp"
 #include "support/shapes.hpp"
 #include "support/temp_dir.hpp"
@@ -448,7 +449,7 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
       "genus angle_min_deg angle_max_deg angle_mean_deg "
       "frac_min_angle_below_10 frac_min_angle_below_20 mean_edge_length "
       "max_edge_length signed_volume self_intersections self_intersecting_triangles "
-      "self_intersection_examples");
+      "self_intersection_examples scan_like_vertices");
   for (std::string key; keys >> key;) {
     INFO(key);
     CHECK(j.contains(key));
@@ -514,6 +515,58 @@ TEST_CASE("inspect --json reports a known mesh exactly", "[cli]") {
     const RunResult t = run(dir, {"inspect", cube});
     CHECK(t.status == 0);
     CHECK_THAT(t.out, Catch::Contains("genus"));
+  }
+}
+
+/// A w x h grid of vertices, spaced dx along x and dy along y, split into right triangles.
+scanmesh::recon::Mesh grid_sheet(int w, int h, double dx, double dy) {
+  scanmesh::recon::Mesh m;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) m.vertices.push_back({x * dx, y * dy, 0.0});
+  auto at = [w](int x, int y) { return static_cast<std::uint32_t>(y * w + x); };
+  for (int y = 0; y + 1 < h; ++y)
+    for (int x = 0; x + 1 < w; ++x) {
+      m.triangles.push_back({at(x, y), at(x + 1, y), at(x + 1, y + 1)});
+      m.triangles.push_back({at(x, y), at(x + 1, y + 1), at(x, y + 1)});
+    }
+  return m;
+}
+
+TEST_CASE("inspect tells vertices that sample a surface like a scan from a CAD export's",
+          "[cli]") {
+  TempDir dir;
+  auto scan_like = [&](const scanmesh::recon::Mesh& m, const std::string& name) {
+    scanmesh::meshio::write_mesh(m, dir / name);
+    const RunResult r = run(dir, {"inspect", dir / name, "--json"});
+    INFO(describe(r));
+    REQUIRE(r.status == 0);
+    return json_of(r).at("scan_like_vertices").get<bool>();
+  };
+  // 100 x 60 vertices, evenly spread: a scan's.
+  CHECK(scan_like(grid_sheet(100, 60, 1.0, 1.0), "even.ply"));
+  // The same count on rows ten times closer than the columns: every triangle a 5.7-degree sliver.
+  CHECK_FALSE(scan_like(grid_sheet(100, 60, 1.0, 0.1), "slivers.ply"));
+  // Too few vertices to sample anything: a box of 8.
+  CHECK_FALSE(scan_like(unit_cube(), "box.ply"));
+  // An even sheet with one triangle reaching 30 spacings away: one face with no point inside.
+  scanmesh::recon::Mesh far = grid_sheet(100, 60, 1.0, 1.0);
+  far.vertices.push_back({70.0, 89.0, 0.0});
+  far.triangles.push_back({static_cast<std::uint32_t>(99 * 60 + 30),
+                           static_cast<std::uint32_t>(99 * 60 + 31),
+                           static_cast<std::uint32_t>(far.vertices.size() - 1)});
+  CHECK_FALSE(scan_like(far, "far.ply"));
+  const RunResult text = run(dir, {"inspect", dir / "slivers.ply"});
+  CHECK_THAT(text.out, Catch::Contains("scanmesh generate --mesh-in"));
+
+  // The shared meshes: the bunny's zipped scans are a scan's; the casting's CAD mesh (17 % of
+  // its triangles under 20 degrees) is not, and only a sample of its surface meshes into its
+  // genus 9.
+  if (const auto bunny = scanmesh::test::shared_file("bunny/reconstruction/bun_zipper.ply")) {
+    CHECK(json_of(run(dir, {"inspect", *bunny, "--json"})).at("scan_like_vertices") == true);
+    const auto casting = scanmesh::test::shared_file("casting/casting.obj");
+    CHECK(json_of(run(dir, {"inspect", *casting, "--json"})).at("scan_like_vertices") == false);
+    const auto igea = scanmesh::test::shared_file("igea/igea.ply");
+    CHECK(json_of(run(dir, {"inspect", *igea, "--json"})).at("scan_like_vertices") == true);
   }
 }
 
