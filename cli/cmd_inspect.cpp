@@ -33,20 +33,6 @@ std::string percent(double fraction) {
   return buf;
 }
 
-/// Whether a mesh's vertices sample its surface as a scan does, so that `scanmesh reconstruct`
-/// can take them as its points: at least 5,000 of them, no edge longer than 6 mean edges, and
-/// at most 10 % of the triangles with an angle under 20 degrees. A CAD export fails it: few
-/// vertices, long edges across flat faces, slivers; its flat faces would have no points, so
-/// its surface is to be sampled instead (`scanmesh generate --mesh-in`). Measured share of
-/// such thin triangles: the Stanford scans' meshes 0.6-4.3 % (bunny at full and half
-/// resolution, igea), the casting's CAD mesh 17 % (from its vertices genus 8 with 5 loops, from
-/// 100k points on its surface exactly genus 9 and closed), fandisk 0 %. Longest over mean edge:
-/// 2.0-4.0 on those scans' meshes (igea 4.0), the casting 2.2, fandisk 2.6.
-bool scan_like_vertices(const recon::MeshReport& r) {
-  return r.referenced_vertices >= 5000 && r.max_edge_length <= 6 * r.mean_edge_length &&
-         r.frac_min_angle_below_20 <= 0.1;
-}
-
 nlohmann::json to_json(const recon::MeshReport& r, const recon::SelfIntersections& x) {
   nlohmann::json j;
   j["vertices"] = r.vertices;
@@ -76,7 +62,7 @@ nlohmann::json to_json(const recon::MeshReport& r, const recon::SelfIntersection
   j["mean_edge_length"] = r.mean_edge_length;
   j["max_edge_length"] = r.max_edge_length;
   j["signed_volume"] = r.signed_volume;
-  j["scan_like_vertices"] = scan_like_vertices(r);
+  j["scan_like_vertices"] = recon::scan_like_vertices(r);
   j["self_intersections"] = x.pairs;
   j["self_intersecting_triangles"] = x.triangles;
   nlohmann::json pairs = nlohmann::json::array();
@@ -130,7 +116,7 @@ void print_text(const std::string& file, const recon::MeshReport& r,
                                       percent(r.frac_min_angle_below_20) + " of triangles");
   line("edge length", "mean " + num(r.mean_edge_length) + ", max " + num(r.max_edge_length));
   line("signed volume", num(r.signed_volume));
-  line("vertices as points", scan_like_vertices(r)
+  line("vertices as points", recon::scan_like_vertices(r)
                                  ? "scan-like (evenly spread: `scanmesh reconstruct` can use them)"
                                  : "too few or uneven (a CAD export?): sample the surface with "
                                    "`scanmesh generate --mesh-in` to reconstruct it");

@@ -371,4 +371,9 @@ MeshReport analyze(const Mesh& mesh, bool keep_loops) {
   return r;
 }
 
+bool scan_like_vertices(const MeshReport& r) {
+  return r.referenced_vertices >= 5000 && r.max_edge_length <= 6 * r.mean_edge_length &&
+         r.frac_min_angle_below_20 <= 0.1;
+}
+
 }  // namespace scanmesh::recon

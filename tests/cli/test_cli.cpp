@@ -532,7 +532,7 @@ scanmesh::recon::Mesh grid_sheet(int w, int h, double dx, double dy) {
   return m;
 }
 
-TEST_CASE("inspect tells vertices that sample a surface like a scan from a CAD export's",
+TEST_CASE("inspect and reconstruct tell vertices that sample a surface like a scan from a CAD export's",
           "[cli]") {
   TempDir dir;
   auto scan_like = [&](const scanmesh::recon::Mesh& m, const std::string& name) {
@@ -557,6 +557,21 @@ TEST_CASE("inspect tells vertices that sample a surface like a scan from a CAD e
   CHECK_FALSE(scan_like(far, "far.ply"));
   const RunResult text = run(dir, {"inspect", dir / "slivers.ply"});
   CHECK_THAT(text.out, Catch::Contains("scanmesh generate --mesh-in"));
+
+  // reconstruct takes a mesh's vertices as its points, and says when they are not a scan's.
+  auto notes = [&](const std::string& name) {
+    const RunResult r = run(dir, {"reconstruct", dir / name, "-o", dir / "out.ply", "--json"});
+    INFO(describe(r));
+    REQUIRE(r.status == 0);
+    return std::make_pair(json_of(r).at("notes"), r.err);
+  };
+  const auto [sliver_notes, sliver_err] = notes("slivers.ply");
+  REQUIRE(sliver_notes.size() == 1);
+  CHECK_THAT(sliver_notes.at(0).get<std::string>(), Catch::Contains("slivers.ply"));
+  CHECK_THAT(sliver_err, Catch::Contains("note:") && Catch::Contains("--mesh-in"));
+  const auto [even_notes, even_err] = notes("even.ply");
+  CHECK(even_notes.empty());
+  CHECK(even_err.find("note:") == std::string::npos);
 
   // The shared meshes: the bunny's zipped scans are a scan's; the casting's CAD mesh (17 % of
   // its triangles under 20 degrees) is not, and only a sample of its surface meshes into its
