@@ -66,40 +66,48 @@ void apply_cube(const std::string& text, recon::ReconstructOptions& o) {
   }
 }
 
-/// Loads and merges every input (registered through the .conf when one is given). With a .conf,
-/// `towards_sensor` gets, for each point, its scan's +z axis in world coordinates: a range scan
-/// looks at the part along -z of its own frame (the Stanford scans: 99 % of bun000's surface
-/// faces +z).
-/// For a mesh input whose vertices do not sample its surface as a scan does (a CAD export:
-/// few vertices, long edges across flat faces, slivers), a note saying so and what to do;
-/// nothing for point files and scan-like meshes. The vertices are still used as the points
-/// (the interface says so), but the flat faces have none, and the front then leaves loops and
-/// wrong handles there (the casting's mesh: genus 8 and 5 loops against 9 and none).
-std::optional<std::string> cad_mesh_note(const std::string& in) {
+/// One INPUT's points. A mesh file's vertices are its points; when they do not sample its
+/// surface as a scan does (a CAD export: few vertices, long edges across flat faces, slivers),
+/// `notes` gets a note saying so and how to sample the surface instead: the flat faces have no
+/// points, and the front leaves loops and wrong handles there (the casting's mesh: genus 8 and
+/// 5 loops, against exactly 9 and none from a sample of its surface).
+recon::PointCloud read_input(const std::string& in, std::vector<std::string>& notes) {
   std::string ext = std::filesystem::path(in).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  if (ext != ".stl" && ext != ".obj" && ext != ".ply") return std::nullopt;
+  if (ext != ".stl" && ext != ".obj" && ext != ".ply") return meshio::read_points(in);
   recon::Mesh mesh;
   try {
     mesh = meshio::read_mesh(in);
-  } catch (const std::exception&) {
-    return std::nullopt;  // its points were read; only the faces are unusable: no advice
+  } catch (const InputError&) {
+    // Unusable faces do not spoil the points: read them alone (which names any fault in them).
+    return meshio::read_points(in);
   }
-  if (mesh.triangles.empty()) return std::nullopt;  // a range scan or a bare vertex list
-  const recon::MeshReport r = recon::analyze(mesh);
-  if (recon::scan_like_vertices(r)) return std::nullopt;
-  char buf[160];
-  std::snprintf(buf, sizeof buf,
-                " (%zu vertices, %.0f %% of the triangles under 20 degrees, longest edge %.1f "
-                "mean edges)",
-                r.referenced_vertices, 100.0 * r.frac_min_angle_below_20,
-                r.mean_edge_length > 0 ? r.max_edge_length / r.mean_edge_length : 0.0);
-  return in + ": its vertices are too few or too uneven to sample the surface as a scan does" +
-         buf + "; they are used as the points, but for a faithful mesh sample its surface: " +
-         "scanmesh generate --mesh-in " + in + " --points 100000 -o points.xyz";
+  if (!mesh.triangles.empty()) {  // not a range scan or a bare vertex list
+    const recon::MeshReport r = recon::analyze(mesh);
+    if (!recon::scan_like_vertices(r)) {
+      char figures[160];
+      std::snprintf(figures, sizeof figures,
+                    " (%zu vertices, %.0f %% of the triangles under 20 degrees, longest edge "
+                    "%.1f mean edges)",
+                    r.referenced_vertices, 100.0 * r.frac_min_angle_below_20,
+                    r.mean_edge_length > 0 ? r.max_edge_length / r.mean_edge_length : 0.0);
+      notes.push_back(in +
+                      ": its vertices are too few or too uneven to sample the surface as a "
+                      "scan does" +
+                      figures +
+                      "; they are used as the points, but for a faithful mesh sample its "
+                      "surface: scanmesh generate --mesh-in " +
+                      in + " --points 100000 -o points.xyz");
+    }
+  }
+  return recon::PointCloud{std::move(mesh.vertices)};
 }
 
+/// Loads and merges every input (registered through the .conf when one is given). With a .conf,
+/// `towards_sensor` gets, for each point, its scan's +z axis in world coordinates: a range scan
+/// looks at the part along -z of its own frame (the Stanford scans: 99 % of bun000's surface
+/// faces +z). `notes` gets read_input's notes on the inputs.
 std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
                                      std::vector<recon::Vec3>& towards_sensor,
                                      std::vector<std::string>& notes) {
@@ -132,9 +140,8 @@ std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
     }
   } else {
     for (const auto& in : args.inputs) {
-      recon::PointCloud c = meshio::read_points(in);
+      const recon::PointCloud c = read_input(in, notes);
       all.insert(all.end(), c.points.begin(), c.points.end());
-      if (const auto note = cad_mesh_note(in)) notes.push_back(*note);
     }
   }
   return all;

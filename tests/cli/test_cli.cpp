@@ -572,6 +572,18 @@ TEST_CASE("inspect and reconstruct tell vertices that sample a surface like a sc
   const auto [even_notes, even_err] = notes("even.ply");
   CHECK(even_notes.empty());
   CHECK(even_err.find("note:") == std::string::npos);
+  // A face naming a vertex that does not exist spoils the faces, not the points.
+  {
+    std::string obj;
+    const scanmesh::recon::Mesh sheet = grid_sheet(100, 60, 1.0, 0.1);
+    for (const auto& v : sheet.vertices)
+      obj += "v " + std::to_string(v.x()) + " " + std::to_string(v.y()) + " 0\n";
+    obj += "f 1 2 999999\n";
+    spit(dir / "bad_face.obj", obj);
+    CHECK(run(dir, {"inspect", dir / "bad_face.obj"}).status == 3);
+    const auto [bad_notes, bad_err] = notes("bad_face.obj");
+    CHECK(bad_notes.empty());
+  }
 
   // The shared meshes: the bunny's zipped scans are a scan's; the casting's CAD mesh (17 % of
   // its triangles under 20 degrees) is not, and only a sample of its surface meshes into its
