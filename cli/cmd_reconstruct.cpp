@@ -1,7 +1,5 @@
 // `scanmesh reconstruct`: read point files, reconstruct a manifold mesh, write it.
 // SPDX-License-Identifier: MIT
-#include <algorithm>
-#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -72,17 +70,7 @@ void apply_cube(const std::string& text, recon::ReconstructOptions& o) {
 /// points, and the front leaves loops and wrong handles there (the casting's mesh: genus 8 and
 /// 5 loops, against exactly 9 and none from a sample of its surface).
 recon::PointCloud read_input(const std::string& in, std::vector<std::string>& notes) {
-  std::string ext = std::filesystem::path(in).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  if (ext != ".stl" && ext != ".obj" && ext != ".ply") return meshio::read_points(in);
-  recon::Mesh mesh;
-  try {
-    mesh = meshio::read_mesh(in);
-  } catch (const InputError&) {
-    // Unusable faces do not spoil the points: read them alone (which names any fault in them).
-    return meshio::read_points(in);
-  }
+  recon::Mesh mesh = meshio::read_points_and_faces(in);
   if (!mesh.triangles.empty()) {  // not a range scan or a bare vertex list
     const recon::MeshReport r = recon::analyze(mesh);
     if (!recon::scan_like_vertices(r)) {

@@ -1,4 +1,5 @@
-// read_mesh(): loads a triangle mesh file and picks the parser by extension.
+// read_mesh(), read_points_and_faces(): load a triangle mesh file, picking the parser by
+// extension.
 // SPDX-License-Identifier: MIT
 #include <string>
 
@@ -16,6 +17,18 @@ recon::Mesh read_mesh(const std::filesystem::path& file) {
   if (ext == ".obj") return parse_obj(detail::load_file(file), name);
   throw InputError(name + ": unknown mesh file extension '" + ext +
                    "' (expected .ply, .stl or .obj)");
+}
+
+recon::Mesh read_points_and_faces(const std::filesystem::path& file) {
+  const std::string ext = detail::lower_extension(file);
+  if (ext == ".ply" || ext == ".stl" || ext == ".obj") {
+    try {
+      return read_mesh(file);
+    } catch (const InputError&) {
+      // The faces are unusable; read_points below reads the points alone or names their fault.
+    }
+  }
+  return recon::Mesh{read_points(file).points, {}};
 }
 
 }  // namespace scanmesh::meshio

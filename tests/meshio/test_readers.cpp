@@ -193,6 +193,29 @@ TEST_CASE("read_points: dispatch by extension and file errors", "[meshio]") {
         bad + ":2: expected 3 numbers (x y z), found 2");
 }
 
+TEST_CASE("read_points_and_faces: a mesh's faces when they parse, its points always", "[meshio]") {
+  TempDir dir;
+  const auto mesh =
+      meshio::read_points_and_faces(dir.file("m.OBJ", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
+  CHECK(mesh.vertices.size() == 3);
+  CHECK(mesh.triangles.size() == 1);
+  // A face naming a missing vertex: read_mesh refuses the file, the points are still read.
+  const auto bad_face = dir.file("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+  CHECK_THAT(input_error([&] { meshio::read_mesh(bad_face); }), Catch::Contains("out of range"));
+  const auto points = meshio::read_points_and_faces(bad_face);
+  CHECK(points.vertices.size() == 3);
+  CHECK(points.triangles.empty());
+  CHECK(meshio::read_points_and_faces(dir.file("p.xyz", "1 2 3\n4 5 6\n")).vertices.size() == 2);
+  CHECK(meshio::read_points_and_faces(dir.file("p.xyz", "1 2 3\n4 5 6\n")).triangles.empty());
+  // Faults in the points themselves are still named.
+  const std::string bad = dir.file("bad.ply",
+                                   "ply\nformat ascii 1.0\nelement vertex 2\n"
+                                   "property float x\nproperty float y\n"
+                                   "property float z\nend_header\n1 2 3\n")
+                              .string();
+  CHECK_THROWS_AS(meshio::read_points_and_faces(bad), scanmesh::InputError);
+}
+
 // ------------------------------------------------------------------------------------------------
 // PLY
 

@@ -23,6 +23,12 @@ recon::PointCloud read_points(const std::filesystem::path& file);
 /// negative indices, polygons triangulated as fans). Throws InputError.
 recon::Mesh read_mesh(const std::filesystem::path& file);
 
+/// The points of any file read_points takes, with the faces when it is a mesh (.ply .stl .obj)
+/// whose faces parse (as read_mesh); a point file, a mesh without faces or one whose faces do
+/// not parse gives its points with no triangles (faces that do not parse do not spoil the
+/// points). Throws InputError as read_points does.
+recon::Mesh read_points_and_faces(const std::filesystem::path& file);
+
 /// In-memory parsers used by the file readers, the tests and the fuzz targets. `name` is used in
 /// error messages only.
 recon::PointCloud parse_xyz(std::string_view text, std::string_view name);
