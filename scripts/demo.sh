@@ -46,8 +46,8 @@ cmake --build build --target scanmesh
 scanmesh="$root/build/cli/scanmesh"
 mkdir -p out
 
-# Reads one numeric field from a one-line JSON object printed by scanmesh (flat keys only).
-json_field() { sed -n "s/.*\"$2\":\([-0-9.eE+]*\).*/\1/p" <<<"$1"; }
+# Reads one number or true/false from a one-line JSON object printed by scanmesh (flat keys only).
+json_field() { sed -n "s/.*\"$2\":\([-0-9.eE+]*\|true\|false\)[,}].*/\1/p" <<<"$1"; }
 
 files=()  # what to list at the end
 ref=""    # reference surface for the deviation, if any
@@ -83,9 +83,8 @@ else
         nm_verts=$(json_field "$report" non_manifold_vertices)
         dups=$(json_field "$report" duplicate_triangles)
         crossing=$(json_field "$report" self_intersections)
-        genus_ok=$(sed -n 's/.*"genus_defined":\(true\|false\).*/\1/p' <<<"$report")
         genus_txt="genus $(json_field "$report" genus)"
-        [ "$genus_ok" = true ] || genus_txt="genus undefined"
+        [ "$(json_field "$report" genus_defined)" = true ] || genus_txt="genus undefined"
         echo "input mesh: $(json_field "$report" vertices) vertices, $(json_field "$report" triangles)" \
           "triangles, $loops boundary loops, $comps component(s), $genus_txt"
         if [ "${nm_edges:-0}" -gt 0 ] || [ "${nm_verts:-0}" -gt 0 ] || [ "${dups:-0}" -gt 0 ] ||
@@ -99,7 +98,7 @@ else
         # export has few vertices, long edges across flat faces and slivers. Its vertices alone
         # would leave the flat faces without points, so its surface is sampled instead
         # (`scanmesh inspect` decides: scan_like_vertices).
-        if ! grep -q '"scan_like_vertices":true' <<<"$report"; then
+        if [ "$(json_field "$report" scan_like_vertices)" != true ]; then
           points="out/${name}_points.xyz"
           thin=$(json_field "$report" frac_min_angle_below_20)
           echo "vertices too few or uneven to be a scan (mean edge" \
