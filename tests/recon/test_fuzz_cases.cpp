@@ -6,11 +6,11 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
+#include <string>
 #include <vector>
 
 #include "reconstruct_case.hpp"
+#include "support/process.hpp"
 
 namespace {
 
@@ -23,9 +23,11 @@ std::vector<std::filesystem::path> files_in(const std::filesystem::path& dir) {
   return out;
 }
 
-std::vector<std::uint8_t> bytes_of(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+/// Runs the case in file f; `triangles` as in run_reconstruct_case.
+std::string run_file(const std::filesystem::path& f, std::size_t* triangles = nullptr) {
+  const std::string b = scanmesh::test::slurp(f);
+  return scanmesh::fuzz::run_reconstruct_case(reinterpret_cast<const std::uint8_t*>(b.data()),
+                                              b.size(), triangles);
 }
 
 }  // namespace
@@ -34,19 +36,18 @@ TEST_CASE("the reconstruction fuzz target's seeds make valid meshes", "[recon][f
   const auto seeds = files_in(std::filesystem::path(SCANMESH_SOURCE_DIR) / "fuzz/seeds/reconstruct");
   REQUIRE(seeds.size() >= 7);  // one per shape, and the option bits
   for (const auto& f : seeds) {
-    const std::vector<std::uint8_t> b = bytes_of(f);
     std::size_t triangles = 0;
     INFO(f.filename().string());
-    CHECK(scanmesh::fuzz::run_reconstruct_case(b.data(), b.size(), &triangles).empty());
+    CHECK(run_file(f, &triangles).empty());
     CHECK(triangles > 0);  // a surface, not a rejected cloud
   }
 }
 
 TEST_CASE("inputs the reconstruction fuzz target once failed on keep the promises", "[recon][fuzz]") {
   const auto cases = files_in(std::filesystem::path(SCANMESH_SOURCE_DIR) / "fuzz/regressions/reconstruct");
+  REQUIRE_FALSE(cases.empty());
   for (const auto& f : cases) {
-    const std::vector<std::uint8_t> b = bytes_of(f);
     INFO(f.filename().string());
-    CHECK(scanmesh::fuzz::run_reconstruct_case(b.data(), b.size()).empty());
+    CHECK(run_file(f).empty());
   }
 }
