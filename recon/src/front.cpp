@@ -19,6 +19,7 @@
 #include <bit>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <deque>
 #include <queue>
@@ -620,6 +621,23 @@ class Builder {
   /// any_listed_triangle_near: per triangle, the search that last saw it (stamp_; 2 bytes a
   /// triangle). Scratch state of a const search, hence mutable.
   mutable std::vector<std::uint16_t> tri_stamp_;
+  /// Triangles with an edge longer than long_edge2_ (squared): those the corner search of
+  /// crosses_mesh, which assumes edges about as long as the new triangle's radius, can miss
+  /// (a triangle between sparse points passing over a dense region: its corners lie beyond the
+  /// search). Every one is tested there. None on the real scans; rebuilt with the corner lists.
+  /// Their boxes are kept beside the ids, so that the test of each is one contiguous read.
+  struct LongTriangle {
+    Vec3 lo, hi;
+    std::uint32_t id;
+  };
+  std::vector<LongTriangle> long_tris_;
+  double long_edge2_ = std::numeric_limits<double>::infinity();
+  void note_if_long(std::uint32_t id) {
+    const Triangle& t = tris_[id];
+    const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
+    if (std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_)
+      long_tris_.push_back({a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c), id});
+  }
   mutable std::uint16_t stamp_ = 0;
 
   static constexpr double kMaxSparsity = 2.5;
@@ -1923,6 +1941,9 @@ void Builder::cap_spacing(double median) {
   const std::size_t n = p_.size();
   sp_.resize(n);
   res_.spacing_cap = kMaxSparsity * median;
+  // The longest edge the relaxed pass makes where the sampling is as the median.
+  const double long_edge = opt_.relaxed_radius_factor * 1.5 * median;
+  long_edge2_ = long_edge * long_edge;
   const auto cap = static_cast<float>(res_.spacing_cap);
   max_spacing_ = 0;
   const std::vector<std::uint32_t>& order = grid_.order();
@@ -2133,6 +2154,7 @@ void Builder::release_corners(std::uint32_t v) {
 void Builder::push_triangle(const Triangle& t) {
   const auto id = static_cast<std::uint32_t>(tris_.size());
   tris_.push_back(t);
+  note_if_long(id);
   if (!pieces_stale_) pieces_.join(t);
   if (corner_head_.empty()) return;
   for (std::uint32_t v : t) link_corner(v, id);  // new corners are never closed yet
@@ -2175,6 +2197,12 @@ void Builder::mark_near_turning(const Vec3& c, double r) {
 }
 
 void Builder::rebuild_corner_lists() {
+  // The triangles were renumbered or rewritten: so are the long ones. Rewriting only splits a
+  // triangle, and every triangle made was noted, so with none long there is none now.
+  if (!long_tris_.empty()) {
+    long_tris_.clear();
+    for (std::uint32_t id = 0; id < tris_.size(); ++id) note_if_long(id);
+  }
   if (corner_head_.empty()) return;
   std::fill(corner_head_.begin(), corner_head_.end(), kNone);
   std::fill(slot_listed_.begin(), slot_listed_.end(), std::uint8_t{0});
@@ -2233,6 +2261,14 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
     if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(id);
     return false;
   });
+  for (const LongTriangle& q : long_tris_) {  // the search above saw those it stamped
+    if (q.lo.x() > tb.hi.x() || q.hi.x() < tb.lo.x() || q.lo.y() > tb.hi.y() ||
+        q.hi.y() < tb.lo.y() || q.lo.z() > tb.hi.z() || q.hi.z() < tb.lo.z() ||
+        tri_stamp_[q.id] == stamp_)
+      continue;
+    tri_stamp_[q.id] = stamp_;
+    near_tris_.push_back(q.id);
+  }
   const Vec3 n = (q1 - q0).cross(q2 - q0);
   const double tol = on_plane_tol(n);
   for (std::uint32_t id : near_tris_)
@@ -2260,6 +2296,7 @@ void Builder::grow_from_bulk() {
   detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);
   tris_.swap(bulk.triangles);
   bulk_kept_ = tris_.size();
+  for (std::uint32_t id = 0; id < tris_.size(); ++id) note_if_long(id);
   pieces_stale_ = true;
   res_.bulk_patches = stats.patches;
   res_.bulk_triangles = stats.triangles;
