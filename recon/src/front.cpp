@@ -621,10 +621,13 @@ class Builder {
   /// any_listed_triangle_near: per triangle, the search that last saw it (stamp_; 2 bytes a
   /// triangle). Scratch state of a const search, hence mutable.
   mutable std::vector<std::uint16_t> tri_stamp_;
+  mutable std::uint16_t stamp_ = 0;
   /// Triangles with an edge longer than long_edge2_ (squared): those the corner search of
   /// crosses_mesh, which assumes edges about as long as the new triangle's radius, can miss
   /// (a triangle between sparse points passing over a dense region: its corners lie beyond the
-  /// search). Every one is tested there. None on the real scans; rebuilt with the corner lists.
+  /// search). Every one is tested there. None on the bunny points, igea, fandisk, the casting
+  /// or the merged scans; a few hundred on a single raw view (its grazing fringe). Rebuilt with
+  /// the corner lists.
   /// Their boxes are kept beside the ids, so that the test of each is one contiguous read.
   struct LongTriangle {
     Vec3 lo, hi;
@@ -638,7 +641,6 @@ class Builder {
     if (std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_)
       long_tris_.push_back({a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c), id});
   }
-  mutable std::uint16_t stamp_ = 0;
 
   static constexpr double kMaxSparsity = 2.5;
   /// cap_spacing: a sparse point keeps its own spacing only where at least kRegionPoints other
