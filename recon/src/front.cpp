@@ -273,6 +273,12 @@ class Builder {
       auto mid = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2);
       std::nth_element(sp.begin(), mid, sp.end());
       cap_spacing(static_cast<double>(*mid));
+      // Long triangles (crosses_mesh): longer than the relaxed pass makes where the sampling
+      // is as dense as its densest twentieth (a dense part may be few of the points).
+      const auto low = sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 20);
+      std::nth_element(sp.begin(), low, mid);
+      const double long_edge = opt.relaxed_radius_factor * 1.5 * static_cast<double>(*low);
+      long_edge2_ = long_edge * long_edge;
       // Clearance of the front-edge tests: 8 float roundings (2^-24 relative) of the largest
       // coordinate, so that no vertex that just misses an edge lands on it in a float file; at
       // most 1e-3 of the median spacing (a cloud far from the origin, which a float file cannot
@@ -625,9 +631,9 @@ class Builder {
   /// Triangles with an edge longer than long_edge2_ (squared): those the corner search of
   /// crosses_mesh, which assumes edges about as long as the new triangle's radius, can miss
   /// (a triangle between sparse points passing over a dense region: its corners lie beyond the
-  /// search). Every one is tested there. None on the bunny points, igea, fandisk, the casting
-  /// or the merged scans; a few hundred on a single raw view (its grazing fringe). Rebuilt with
-  /// the corner lists.
+  /// search). Every one is tested there. 1-7 on the bunny points, igea and the merged scans; a
+  /// few hundred on a single raw view (its grazing fringe). Kept in ascending id order: noted
+  /// as triangles are made, renumbered where removed ones are compacted away.
   /// Their boxes are kept beside the ids, so that the test of each is one contiguous read.
   struct LongTriangle {
     Vec3 lo, hi;
@@ -635,6 +641,27 @@ class Builder {
   };
   std::vector<LongTriangle> long_tris_;
   double long_edge2_ = std::numeric_limits<double>::infinity();
+#ifndef NDEBUG
+  /// Debug: the list holds exactly the long triangles, in ascending id order, each inside its box.
+  void check_long_list() const {
+    std::size_t k = 0;
+    for (std::uint32_t id = 0; id < tris_.size(); ++id) {
+      const Triangle& t = tris_[id];
+      const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
+      const bool is_long =
+          std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_;
+      const bool listed = k < long_tris_.size() && long_tris_[k].id == id;
+      // A long triangle split in place by a slit stays listed (its box still holds it).
+      assert((!is_long || listed) && "a long triangle is not in the crossing guard's list");
+      if (!listed) continue;
+      const LongTriangle& q = long_tris_[k++];
+      for (const Vec3* v : {&a, &b, &c})
+        assert((q.lo.array() <= v->array()).all() && (v->array() <= q.hi.array()).all() &&
+               "a long triangle outside its listed box");
+    }
+    assert(k == long_tris_.size() && "the long list names a triangle that is gone");
+  }
+#endif
   void note_if_long(std::uint32_t id) {
     const Triangle& t = tris_[id];
     const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
@@ -1616,7 +1643,18 @@ std::size_t Builder::repair_fans(bool thorough) {
         for (std::uint32_t v : tris_[t]) fan_dirty_.push_back(v);
       }
     }
+    // The long triangles, renumbered as the rest (their list is in ascending id order).
+    std::size_t kept_long = 0, k = 0;
+    for (std::uint32_t t = 0, dead_before = 0; k < long_tris_.size(); dead_before += dead[t] ? 1 : 0, ++t) {
+      if (long_tris_[k].id != t) continue;
+      if (!dead[t]) long_tris_[kept_long++] = {long_tris_[k].lo, long_tris_[k].hi, t - dead_before};
+      ++k;
+    }
+    long_tris_.resize(kept_long);
     tris_.resize(w);
+#ifndef NDEBUG
+    check_long_list();
+#endif
     bulk_kept_ -= bulk_removed;
     pieces_stale_ = true;
     res_.removed_fan_triangles += removed;
@@ -1784,10 +1822,15 @@ void Builder::split_flat_triangle_holes() {
           if (tris_[t][k] == z && tris_[t][(k + 1) % 3] == x && tris_[t][(k + 2) % 3] == o) at = t;
       if (at == tris_.size()) continue;
       if (at < bulk_kept_) fan_dirty_.insert(fan_dirty_.end(), {z, x, o});
-      tris_[at] = {z, inner.front().second, o};
+      tris_[at] = {z, inner.front().second, o};  // if long, its listed box still holds it
+      const auto first_new = static_cast<std::uint32_t>(tris_.size());
       for (std::size_t k = 1; k < inner.size(); ++k)
         tris_.push_back({inner[k - 1].second, inner[k].second, o});
       tris_.push_back({inner.back().second, x, o});
+      for (auto id = first_new; id < tris_.size(); ++id) note_if_long(id);
+#ifndef NDEBUG
+      check_long_list();
+#endif
       for (const auto& im : inner) edges_map_.insert(im.second, o, kInterior);
       split = true;
     }
@@ -1943,9 +1986,6 @@ void Builder::cap_spacing(double median) {
   const std::size_t n = p_.size();
   sp_.resize(n);
   res_.spacing_cap = kMaxSparsity * median;
-  // The longest edge the relaxed pass makes where the sampling is as the median.
-  const double long_edge = opt_.relaxed_radius_factor * 1.5 * median;
-  long_edge2_ = long_edge * long_edge;
   const auto cap = static_cast<float>(res_.spacing_cap);
   max_spacing_ = 0;
   const std::vector<std::uint32_t>& order = grid_.order();
@@ -2199,12 +2239,6 @@ void Builder::mark_near_turning(const Vec3& c, double r) {
 }
 
 void Builder::rebuild_corner_lists() {
-  // The triangles were renumbered or rewritten: so are the long ones. Rewriting only splits a
-  // triangle, and every triangle made was noted, so with none long there is none now.
-  if (!long_tris_.empty()) {
-    long_tris_.clear();
-    for (std::uint32_t id = 0; id < tris_.size(); ++id) note_if_long(id);
-  }
   if (corner_head_.empty()) return;
   std::fill(corner_head_.begin(), corner_head_.end(), kNone);
   std::fill(slot_listed_.begin(), slot_listed_.end(), std::uint8_t{0});
