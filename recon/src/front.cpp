@@ -651,8 +651,7 @@ class Builder {
       const bool is_long =
           std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_;
       const bool listed = k < long_tris_.size() && long_tris_[k].id == id;
-      // A long triangle split in place by a slit stays listed (its box still holds it).
-      assert((!is_long || listed) && "a long triangle is not in the crossing guard's list");
+      assert(is_long == listed && "the crossing guard's list of long triangles is off");
       if (!listed) continue;
       const LongTriangle& q = long_tris_[k++];
       for (const Vec3* v : {&a, &b, &c})
@@ -662,6 +661,17 @@ class Builder {
     assert(k == long_tris_.size() && "the long list names a triangle that is gone");
   }
 #endif
+  /// Triangle id was rewritten in place: its entry follows (added, moved or dropped).
+  void renote(std::uint32_t id) {
+    auto at = std::lower_bound(long_tris_.begin(), long_tris_.end(), id,
+                               [](const LongTriangle& q, std::uint32_t i) { return q.id < i; });
+    if (at != long_tris_.end() && at->id == id) at = long_tris_.erase(at);
+    const std::size_t pos = static_cast<std::size_t>(at - long_tris_.begin());
+    note_if_long(id);  // appends when long: move it to its place
+    if (long_tris_.size() > pos + 1 && long_tris_.back().id == id)
+      std::rotate(long_tris_.begin() + static_cast<std::ptrdiff_t>(pos), long_tris_.end() - 1,
+                  long_tris_.end());
+  }
   void note_if_long(std::uint32_t id) {
     const Triangle& t = tris_[id];
     const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
@@ -1822,7 +1832,8 @@ void Builder::split_flat_triangle_holes() {
           if (tris_[t][k] == z && tris_[t][(k + 1) % 3] == x && tris_[t][(k + 2) % 3] == o) at = t;
       if (at == tris_.size()) continue;
       if (at < bulk_kept_) fan_dirty_.insert(fan_dirty_.end(), {z, x, o});
-      tris_[at] = {z, inner.front().second, o};  // if long, its listed box still holds it
+      tris_[at] = {z, inner.front().second, o};
+      renote(static_cast<std::uint32_t>(at));
       const auto first_new = static_cast<std::uint32_t>(tris_.size());
       for (std::size_t k = 1; k < inner.size(); ++k)
         tris_.push_back({inner[k - 1].second, inner[k].second, o});
