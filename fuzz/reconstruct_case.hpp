@@ -22,11 +22,9 @@
 #pragma once
 
 #include <algorithm>
-#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
-#include <numbers>
 #include <string>
 #include <vector>
 
@@ -34,6 +32,7 @@
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
+#include "support/shapes.hpp"
 
 namespace scanmesh::fuzz {
 
@@ -78,18 +77,11 @@ inline std::vector<recon::Vec3> case_points(const std::uint8_t* data, std::size_
     case 1:
       detail::height_field(d, std::min(n, kMaxCasePoints), 4 + param % 61, 0.0, points);
       break;
-    case 2: {  // Fibonacci sphere of radius 10 (+-1.25), one point a byte
-      const std::size_t m = std::min(n, kMaxCasePoints);
-      const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
-      for (std::size_t i = 0; i < m; ++i) {
-        const double z = 1.0 - 2.0 * (static_cast<double>(i) + 0.5) / static_cast<double>(m);
-        const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
-        const double a = golden * static_cast<double>(i);
-        const double radius = 10.0 * (1.0 + (static_cast<double>(d[i]) - 128.0) / 1024.0);
-        points.emplace_back(radius * r * std::cos(a), radius * r * std::sin(a), radius * z);
-      }
+    case 2:  // Fibonacci sphere of radius 10 (+-1.25), one point a byte
+      points = test::sphere_points(std::min(n, kMaxCasePoints));
+      for (std::size_t i = 0; i < points.size(); ++i)
+        points[i] *= 1.0 + (static_cast<double>(d[i]) - 128.0) / 1024.0;
       break;
-    }
     default: {
       const std::size_t m = std::min(n, kMaxCasePoints / 2);
       const std::size_t w = 4 + param % 29;

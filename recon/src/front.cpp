@@ -641,43 +641,50 @@ class Builder {
   };
   std::vector<LongTriangle> long_tris_;
   double long_edge2_ = std::numeric_limits<double>::infinity();
+  /// Whether triangle id is long; then `q` is its entry.
+  bool long_entry(std::uint32_t id, LongTriangle& q) const {
+    const Triangle& t = tris_[id];
+    const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
+    if (!(std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_))
+      return false;
+    q = {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c), id};
+    return true;
+  }
+  /// A triangle just made (the highest id so far).
+  void note_if_long(std::uint32_t id) {
+    LongTriangle q;
+    if (long_entry(id, q)) long_tris_.push_back(q);
+  }
+  /// Triangle id was rewritten in place: its entry is added, updated or dropped.
+  void renote(std::uint32_t id) {
+    const auto at = std::lower_bound(long_tris_.begin(), long_tris_.end(), id,
+                                     [](const LongTriangle& q, std::uint32_t i) { return q.id < i; });
+    const bool listed = at != long_tris_.end() && at->id == id;
+    LongTriangle q;
+    if (!long_entry(id, q)) {
+      if (listed) long_tris_.erase(at);
+    } else if (listed) {
+      *at = q;
+    } else {
+      long_tris_.insert(at, q);
+    }
+  }
 #ifndef NDEBUG
-  /// Debug: the list holds exactly the long triangles, in ascending id order, each inside its box.
+  /// Debug: the list holds exactly the long triangles, in ascending id order, with their boxes.
   void check_long_list() const {
     std::size_t k = 0;
+    LongTriangle q;
     for (std::uint32_t id = 0; id < tris_.size(); ++id) {
-      const Triangle& t = tris_[id];
-      const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
-      const bool is_long =
-          std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_;
+      const bool is_long = long_entry(id, q);
       const bool listed = k < long_tris_.size() && long_tris_[k].id == id;
       assert(is_long == listed && "the crossing guard's list of long triangles is off");
       if (!listed) continue;
-      const LongTriangle& q = long_tris_[k++];
-      for (const Vec3* v : {&a, &b, &c})
-        assert((q.lo.array() <= v->array()).all() && (v->array() <= q.hi.array()).all() &&
-               "a long triangle outside its listed box");
+      const LongTriangle& l = long_tris_[k++];
+      assert(l.lo == q.lo && l.hi == q.hi && "a long triangle's listed box is not its own");
     }
     assert(k == long_tris_.size() && "the long list names a triangle that is gone");
   }
 #endif
-  /// Triangle id was rewritten in place: its entry follows (added, moved or dropped).
-  void renote(std::uint32_t id) {
-    auto at = std::lower_bound(long_tris_.begin(), long_tris_.end(), id,
-                               [](const LongTriangle& q, std::uint32_t i) { return q.id < i; });
-    if (at != long_tris_.end() && at->id == id) at = long_tris_.erase(at);
-    const std::size_t pos = static_cast<std::size_t>(at - long_tris_.begin());
-    note_if_long(id);  // appends when long: move it to its place
-    if (long_tris_.size() > pos + 1 && long_tris_.back().id == id)
-      std::rotate(long_tris_.begin() + static_cast<std::ptrdiff_t>(pos), long_tris_.end() - 1,
-                  long_tris_.end());
-  }
-  void note_if_long(std::uint32_t id) {
-    const Triangle& t = tris_[id];
-    const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
-    if (std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_)
-      long_tris_.push_back({a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c), id});
-  }
 
   static constexpr double kMaxSparsity = 2.5;
   /// cap_spacing: a sparse point keeps its own spacing only where at least kRegionPoints other
@@ -2309,10 +2316,7 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
     return false;
   });
   for (const LongTriangle& q : long_tris_) {  // the search above saw those it stamped
-    if (q.lo.x() > tb.hi.x() || q.hi.x() < tb.lo.x() || q.lo.y() > tb.hi.y() ||
-        q.hi.y() < tb.lo.y() || q.lo.z() > tb.hi.z() || q.hi.z() < tb.lo.z() ||
-        tri_stamp_[q.id] == stamp_)
-      continue;
+    if (tb.box_misses(q.lo, q.hi) || tri_stamp_[q.id] == stamp_) continue;
     tri_stamp_[q.id] = stamp_;
     near_tris_.push_back(q.id);
   }

@@ -103,10 +103,10 @@ class Refiner {
   /// Whether new triangle `nt` would cross a listed triangle of the mesh other than those
   /// it replaces (`gone`).
   bool crosses(const Triangle& nt, std::initializer_list<std::uint32_t> gone);
-  /// Whether two of the triangles an operation makes meet other than along what they share
+  /// Whether the triangles an operation makes, in place of `gone`, cross the mesh or each other
   /// (crosses() sees only the mesh as it is: an edge split across a spike made two new
   /// triangles through each other).
-  bool cross_each_other(std::initializer_list<Triangle> made) const;
+  bool made_cross(std::initializer_list<Triangle> made, std::initializer_list<std::uint32_t> gone);
   bool try_flip(std::uint32_t u, std::uint32_t v);
   void improve_around(std::uint32_t p);
 #ifndef NDEBUG
@@ -389,9 +389,7 @@ bool Refiner::split_into(std::uint32_t q, std::uint32_t best, const double (&bar
       const Vec3 n1 = unit_normal(tb);
       const Triangle a1{u, q, x}, a2{q, v, x}, b1{v, q, y}, b2{q, u, y};
       if (!fits(a1, n0) || !fits(a2, n0) || !fits(b1, n1) || !fits(b2, n1)) return false;
-      if (cross_each_other({a1, a2, b1, b2})) return false;
-      for (const Triangle& nt : {a1, a2, b1, b2})
-        if (crosses(nt, {best, t1})) return false;
+      if (made_cross({a1, a2, b1, b2}, {best, t1})) return false;
       replace(best, a1);
       append(a2);
       replace(t1, b1);
@@ -399,9 +397,7 @@ bool Refiner::split_into(std::uint32_t q, std::uint32_t best, const double (&bar
     } else {
       const Triangle a1{u, q, x}, a2{q, v, x};
       if (!fits(a1, n0) || !fits(a2, n0)) return false;
-      if (cross_each_other({a1, a2})) return false;
-      for (const Triangle& nt : {a1, a2})
-        if (crosses(nt, {best})) return false;
+      if (made_cross({a1, a2}, {best})) return false;
       replace(best, a1);
       append(a2);
     }
@@ -409,9 +405,7 @@ bool Refiner::split_into(std::uint32_t q, std::uint32_t best, const double (&bar
   } else {
     const Triangle a1{t0[0], t0[1], q}, a2{t0[1], t0[2], q}, a3{t0[2], t0[0], q};
     if (!fits(a1, n0) || !fits(a2, n0) || !fits(a3, n0)) return false;
-    if (cross_each_other({a1, a2, a3})) return false;
-    for (const Triangle& nt : {a1, a2, a3})
-      if (crosses(nt, {best})) return false;
+    if (made_cross({a1, a2, a3}, {best})) return false;
     replace(best, a1);
     append(a2);
     append(a3);
@@ -419,10 +413,13 @@ bool Refiner::split_into(std::uint32_t q, std::uint32_t best, const double (&bar
   return true;
 }
 
-bool Refiner::cross_each_other(std::initializer_list<Triangle> made) const {
+bool Refiner::made_cross(std::initializer_list<Triangle> made,
+                         std::initializer_list<std::uint32_t> gone) {
   for (auto s = made.begin(); s != made.end(); ++s)
     for (auto t = s + 1; t != made.end(); ++t)
       if (triangles_intersect(p_, *s, *t)) return true;
+  for (const Triangle& nt : made)
+    if (crosses(nt, gone)) return true;
   return false;
 }
 
@@ -534,8 +531,7 @@ bool Refiner::try_flip(std::uint32_t u, std::uint32_t v) {
     if (!flip && mending_sliver_)
       flip = new_min > 2 * old_min && e_new < 1.1 * e_old;
   }
-  if (!flip || cross_each_other({C, D}) || crosses(C, {t1, t2}) || crosses(D, {t1, t2}))
-    return false;
+  if (!flip || made_cross({C, D}, {t1, t2})) return false;
   for (std::uint32_t w : {u, v, x, y}) touched_[w] = 1;
   replace(t1, C);
   replace(t2, D);

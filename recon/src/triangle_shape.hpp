@@ -41,6 +41,12 @@ struct TriangleBounds {
     }
     return false;
   }
+  /// Whether the box [lo, hi] misses this one's.
+  [[nodiscard]] bool box_misses(const Vec3& l, const Vec3& h) const {
+    for (int k = 0; k < 3; ++k)
+      if (l[k] > hi[k] || h[k] < lo[k]) return true;
+    return false;
+  }
 };
 
 }  // namespace scanmesh::recon::detail
