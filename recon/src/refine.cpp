@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace scanmesh::recon {
@@ -66,11 +67,25 @@ class Refiner {
     for (std::uint32_t v : nt)
       if (corner_of(tris_[t], v) == 3) link(v, t);
     tris_[t] = nt;
+    note_if_long(t);
   }
   void append(const Triangle& nt) {
     const auto t = static_cast<std::uint32_t>(tris_.size());
     tris_.push_back(nt);
     for (std::uint32_t v : nt) link(v, t);
+    note_if_long(t);
+  }
+  /// Sets the crossing search's least reach and lists the triangles too long for it.
+  void list_long_triangles();
+  /// Lists triangle t with its box when an edge is longer than long_edge2_ allows. A triangle
+  /// listed before and rewritten since keeps its old entry too: crosses() tests what the slot
+  /// holds now, so a stale entry costs a test, never a miss.
+  void note_if_long(std::uint32_t t) {
+    const Triangle& tr = tris_[t];
+    const Vec3 &a = p_[tr[0]], &b = p_[tr[1]], &c = p_[tr[2]];
+    if (std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) >
+        long_edge2_)
+      long_.push_back({t, a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)});
   }
   /// The triangle holding directed edge a -> b (a complete), or kNone.
   std::uint32_t find_tri(std::uint32_t a, std::uint32_t b) {
@@ -125,6 +140,17 @@ class Refiner {
   const std::span<const float> spacing_;
   std::vector<std::uint32_t> slot_;  // per vertex: its triangle list in lists_, or kNone
   std::vector<std::vector<std::uint32_t>> lists_;
+  /// The crossing search finds a triangle through a corner within its reach of the new
+  /// one's bounding sphere, which holds for every triangle whose edges are at most sqrt(3) times
+  /// that reach (each of its points lies within longest edge / sqrt(3) of a corner). The reach
+  /// is 2.5 local spacings, at least reach_floor_; the longer triangles are listed (long_).
+  struct LongTriangle {
+    std::uint32_t t;
+    Vec3 lo, hi;
+  };
+  std::vector<LongTriangle> long_;
+  double reach_floor_ = 0;
+  double long_edge2_ = std::numeric_limits<double>::infinity();
   std::vector<std::uint32_t> cand_, near_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> queue_;
   std::vector<std::uint8_t> touched_;  // per vertex: a flip changed its triangles
@@ -134,6 +160,7 @@ class Refiner {
 
 RefineStats Refiner::run() {
   touched_.assign(p_.size(), 0);
+  list_long_triangles();
   const std::vector<std::uint32_t> slivers = find_slivers();
   list_triangles_near(slivers);
   const std::vector<std::uint32_t> inserted = insert_left_out();
@@ -155,6 +182,25 @@ RefineStats Refiner::run() {
     if (complete(v)) assert(single_fan(v));
 #endif
   return stats_;
+}
+
+void Refiner::list_long_triangles() {
+  // The reach floor: 2.5 times the 10th percentile of the used vertices' spacing (a sample of
+  // at most about 4096), so that few calls are widened and few triangles listed; any floor
+  // keeps the search complete.
+  const std::size_t n = p_.size();
+  const std::size_t stride = std::max<std::size_t>(1, n / 4096);
+  std::vector<float> sample;
+  for (std::size_t v = 0; v < n; v += stride)
+    if (fr_.state[v] != VertexState::kOutlier && fr_.state[v] != VertexState::kFree &&
+        spacing(static_cast<std::uint32_t>(v)) > 0)
+      sample.push_back(spacing(static_cast<std::uint32_t>(v)));
+  if (sample.empty()) return;  // no reach floor, and every triangle is found by its corners
+  const auto at = sample.begin() + static_cast<std::ptrdiff_t>(sample.size() / 10);
+  std::nth_element(sample.begin(), at, sample.end());
+  reach_floor_ = 2.5 * static_cast<double>(*at);
+  long_edge2_ = 3.0 * reach_floor_ * reach_floor_;
+  for (std::uint32_t t = 0; t < tris_.size(); ++t) note_if_long(t);
 }
 
 std::vector<std::uint32_t> Refiner::find_slivers() {
@@ -424,11 +470,13 @@ bool Refiner::made_cross(std::initializer_list<Triangle> made,
 }
 
 bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> gone) {
-  // Every listed triangle near nt: a triangle crossing it has a corner within 0.58 of its own
-  // longest edge (at most about 4 local spacings) of nt's bounding sphere.
+  // Every listed triangle near nt: a triangle crossing it has a corner within its longest
+  // edge / sqrt(3) of nt's bounding sphere; the longer ones are in long_ (see there).
   const detail::TriangleBounds nb(p_[nt[0]], p_[nt[1]], p_[nt[2]]);
   near_.clear();
-  grid_.for_each_range_within(nb.centre, nb.reach + 2.5 * spacing(nt[0]),
+  for (const LongTriangle& l : long_)
+    if (!nb.box_misses(l.lo, l.hi)) near_.push_back(l.t);
+  grid_.for_each_range_within(nb.centre, nb.reach + std::max(2.5 * spacing(nt[0]), reach_floor_),
                               [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s) {
       const std::uint32_t j = grid_.order()[s];

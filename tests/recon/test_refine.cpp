@@ -6,6 +6,7 @@
 #include <set>
 
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/refine.hpp"
 
 using scanmesh::recon::analyze;
@@ -237,4 +238,27 @@ TEST_CASE("refine: a sliver is flipped away, topology kept; sliver_deg 0 leaves 
   const auto stats = insert_unused_points(s.points, frames, grid, front, off);
   CHECK(stats.flips == 0);
   CHECK(front.triangles == s.triangles);
+}
+
+TEST_CASE("refine: an insertion does not cross a long triangle whose corners are far away",
+          "[recon][refine]") {
+  // A left-out point 0.3 above the flat patch: putting it in makes a low tent. A large triangle
+  // (corners 20-30 spacings away, far beyond every list the insertion keeps) lies flat at
+  // z = 0.15 over the patch, facing down (the underside of a part seen from below): the tent
+  // would pierce it.
+  Scene s = flat_patch();
+  const Vec3 down = -Vec3::UnitZ();
+  const std::uint32_t a = s.add(Vec3(-20, -20, 0.15), down), b = s.add(Vec3(30, -20, 0.15), down),
+                      c = s.add(Vec3(2.5, 30, 0.15), down);
+  s.tri(a, b, c, down);
+  REQUIRE(scanmesh::recon::find_self_intersections(s.points, s.triangles).pairs == 0);
+  const std::uint32_t q = s.add(Vec3(2.3, 2.6, 0.3), Vec3::UnitZ());
+  s.left_out = {q};
+  const auto r = s.refine();
+  require_valid(r.mesh);
+  CHECK(scanmesh::recon::find_self_intersections(r.mesh).pairs == 0);
+  // Nowhere to put it without crossing: it stays left out, and nothing else changed.
+  CHECK(r.stats.inserted == 0);
+  CHECK(r.front.outliers == s.left_out);
+  CHECK(r.front.triangles == s.triangles);
 }
