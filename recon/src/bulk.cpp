@@ -249,7 +249,7 @@ class Bulk {
       const bool sheltered = inner[local_[q[0]].cell] && inner[local_[q[1]].cell] && inner[local_[q[2]].cell] &&
                              longest2 <= cell * cell;
       if (!sheltered && foreign_inside(a, b, c, id)) continue;
-      kept_[t] = 1;
+      kept_[t] = longest2 > opt_.long_edge2 ? kKeptLong : 1;
       normal_[t] = n.cast<float>();
     }
     // No fold between kept neighbours (both faces of such a pair are dropped), and the fans to
@@ -355,6 +355,7 @@ class Bulk {
     for (std::uint32_t t = 0; t < nt; ++t) {
       if (!kept_[t]) continue;
       const std::uint32_t* q = &corner[3 * t];
+      if (kept_[t] == kKeptLong) out_.long_triangles.push_back(static_cast<std::uint32_t>(out_.triangles.size()));
       out_.triangles.push_back({local_[q[0]].point, local_[q[1]].point, local_[q[2]].point});
       for (std::uint32_t k = 0; k < 3; ++k) {
         const std::uint32_t x = q[k], y = q[(k + 1) % 3];
@@ -397,7 +398,10 @@ class Bulk {
   std::vector<Vec3> lpos_, lnrm_;  // its points' positions and normals
   std::vector<double> lspc_;       // and capped spacings
   Delaunay2 dt_;
+  /// Per face of the triangulation: 0 dropped, else kept (kKeptLong: with an edge longer than
+  /// long_edge2, for BulkMesh::long_triangles).
   std::vector<std::uint8_t> kept_;
+  static constexpr std::uint8_t kKeptLong = 2;
   std::vector<Eigen::Vector3f> normal_;  // unit normal of a face that passed the rules
   std::vector<VertexState> vstate_;
   std::vector<std::uint32_t> queue_, ring_;

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -34,6 +35,9 @@ struct BulkOptions {
   /// Patches stop growing at this many points: the triangulation of one patch is live at a
   /// time, so this bounds the stage's memory.
   std::size_t max_patch_points = std::size_t{1} << 17;
+  /// Kept faces with an edge longer than this (squared) are named in BulkMesh::long_triangles
+  /// (the front's crossing guard lists them; the bulk has their edges at hand).
+  double long_edge2 = std::numeric_limits<double>::infinity();
 };
 
 /// The bulk's triangles and their border: the front's starting point.
@@ -45,6 +49,9 @@ struct BulkMesh {
   /// Edges of two triangles whose end points are both on the border (the front must know
   /// them; the other interior edges it never meets).
   std::vector<std::array<std::uint32_t, 2>> border_chords;
+  /// Positions in `triangles` of the faces with an edge longer than BulkOptions::long_edge2
+  /// allows, ascending.
+  std::vector<std::uint32_t> long_triangles;
 };
 
 struct BulkStats {

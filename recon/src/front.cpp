@@ -2340,6 +2340,7 @@ void Builder::grow_from_bulk() {
   bo.max_valence = opt_.max_valence;
   bo.max_patch_points = opt_.bulk_patch_points;
   bo.patch_cone_deg = opt_.bulk_patch_cone_deg;
+  bo.long_edge2 = long_edge2_;
   step("front/bulk");
   detail::BulkStats stats;
   detail::BulkMesh bulk;
@@ -2347,7 +2348,10 @@ void Builder::grow_from_bulk() {
   detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);
   tris_.swap(bulk.triangles);
   bulk_kept_ = tris_.size();
-  for (std::uint32_t id = 0; id < tris_.size(); ++id) note_if_long(id);
+  for (const std::uint32_t id : bulk.long_triangles) note_if_long(id);
+#ifndef NDEBUG
+  check_long_list();
+#endif
   pieces_stale_ = true;
   res_.bulk_patches = stats.patches;
   res_.bulk_triangles = stats.triangles;

@@ -75,8 +75,9 @@ class Refiner {
     for (std::uint32_t v : nt) link(v, t);
     note_if_long(t);
   }
-  /// Sets the crossing search's least reach and lists the triangles too long for it.
-  void list_long_triangles();
+  /// Sets the crossing search's least reach (reach_floor_) and the edge beyond which a
+  /// triangle is listed as long (long_edge2_).
+  void set_reach_floor();
   /// Lists triangle t with its box when an edge is longer than long_edge2_ allows. A triangle
   /// listed before and rewritten since keeps its old entry too: crosses() tests what the slot
   /// holds now, so a stale entry costs a test, never a miss.
@@ -98,7 +99,8 @@ class Refiner {
     const double l = n.norm();
     return l > 0 ? Vec3(n / l) : Vec3::Zero();
   }
-  std::vector<std::uint32_t> find_slivers();
+  /// The triangles with a corner under sliver_deg; lists the long ones on the way (one pass).
+  std::vector<std::uint32_t> find_slivers_and_long();
   void list_triangles_near(const std::vector<std::uint32_t>& slivers);
   std::vector<std::uint32_t> insert_left_out();
   void flip_around(const std::vector<std::uint32_t>& inserted);
@@ -160,8 +162,8 @@ class Refiner {
 
 RefineStats Refiner::run() {
   touched_.assign(p_.size(), 0);
-  list_long_triangles();
-  const std::vector<std::uint32_t> slivers = find_slivers();
+  set_reach_floor();
+  const std::vector<std::uint32_t> slivers = find_slivers_and_long();
   list_triangles_near(slivers);
   const std::vector<std::uint32_t> inserted = insert_left_out();
   flip_around(inserted);
@@ -184,7 +186,7 @@ RefineStats Refiner::run() {
   return stats_;
 }
 
-void Refiner::list_long_triangles() {
+void Refiner::set_reach_floor() {
   // The reach floor: 2.5 times the 10th percentile of the used vertices' spacing (a sample of
   // at most about 4096), so that few calls are widened and few triangles listed; any floor
   // keeps the search complete.
@@ -200,24 +202,29 @@ void Refiner::list_long_triangles() {
   std::nth_element(sample.begin(), at, sample.end());
   reach_floor_ = 2.5 * static_cast<double>(*at);
   long_edge2_ = 3.0 * reach_floor_ * reach_floor_;
-  for (std::uint32_t t = 0; t < tris_.size(); ++t) note_if_long(t);
 }
 
-std::vector<std::uint32_t> Refiner::find_slivers() {
-  // A corner under sliver_deg, tested on squared lengths (no root).
+std::vector<std::uint32_t> Refiner::find_slivers_and_long() {
+  // A corner under sliver_deg, tested on squared lengths (no root). Corner k's u runs along
+  // the edge from it, so the three u are the three edges.
   std::vector<std::uint32_t> slivers;
-  if (!(o_.sliver_deg > 0)) return slivers;
+  const bool find = o_.sliver_deg > 0;
   const double c = std::cos(o_.sliver_deg * std::numbers::pi / 180), c2 = c * c;
   for (std::uint32_t t = 0; t < tris_.size(); ++t) {
     const Triangle& tr = tris_[t];
+    bool sliver = false;
+    double longest2 = 0;
     for (int k = 0; k < 3; ++k) {
-      const Vec3 u = p_[tr[(k + 1) % 3]] - p_[tr[k]], w = p_[tr[(k + 2) % 3]] - p_[tr[k]];
+      const Vec3 u = p_[tr[(k + 1) % 3]] - p_[tr[k]];
+      const double uu = u.squaredNorm();
+      longest2 = std::max(longest2, uu);
+      if (!find || sliver) continue;
+      const Vec3 w = p_[tr[(k + 2) % 3]] - p_[tr[k]];
       const double d = u.dot(w);
-      if (d > 0 && d * d > c2 * u.squaredNorm() * w.squaredNorm()) {
-        slivers.push_back(t);
-        break;
-      }
+      sliver = d > 0 && d * d > c2 * uu * w.squaredNorm();
     }
+    if (sliver) slivers.push_back(t);
+    if (longest2 > long_edge2_) note_if_long(t);
   }
   stats_.slivers = slivers.size();
   return slivers;
