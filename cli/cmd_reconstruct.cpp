@@ -154,7 +154,7 @@ int run_reconstruct(const ReconstructArgs& args) {
   if (!args.sensor.empty() && !args.conf.empty())
     throw ConfigError("--sensor and --conf both say where the sensor was: give one");
   std::vector<recon::Vec3> towards_sensor;
-  std::vector<std::string> notes;  // about the inputs: on stderr, and in the JSON
+  std::vector<std::string> notes;  // about the inputs and the result: on stderr, and in the JSON
   const std::vector<recon::Vec3> points = load_inputs(args, towards_sensor, notes);
   for (const auto& note : notes) std::fprintf(stderr, "scanmesh: note: %s\n", note.c_str());
   if (args.sensor.size() == 3) {
@@ -199,6 +199,14 @@ int run_reconstruct(const ReconstructArgs& args) {
     if (stage != "done") report(stage);
   };
   recon::ReconstructResult res = recon::reconstruct(points, opt, observer, towards_sensor);
+  if (res.untangle.skipped > 0) {
+    notes.push_back(std::to_string(res.untangle.skipped) +
+                    " more gaps whose patch would cross the mesh stay open: untangling stops after " +
+                    std::to_string(recon::kMaxUntangledGaps) +
+                    " (so many usually means noise thicker than the spacing, or points that are "
+                    "not a surface)");
+    std::fprintf(stderr, "scanmesh: note: %s\n", notes.back().c_str());
+  }
 
   auto t = Clock::now();
   report("write " + args.output);
@@ -247,6 +255,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["zipped_slits"] = res.zip.zipped;
     j["untangled_gaps"] = res.untangle.closed;
     j["untangle_removed_triangles"] = res.untangle.removed;
+    j["untangle_skipped_gaps"] = res.untangle.skipped;
     j["removed_fan_triangles"] = res.removed_fan_triangles;
     j["inserted_points"] = res.refine.inserted;
     j["inserted_by_edge_split"] = res.refine.edge_splits;

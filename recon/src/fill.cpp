@@ -637,8 +637,10 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
 namespace {
 
 /// One gap's untangling (see untangle_gaps): `mesh` and `st` unchanged when it does not help.
-void untangle_one(Mesh& mesh, const FillOptions& options, std::span<const float> vertex_spacing,
-                  std::span<const std::uint32_t> crossed, UntangleStats& st) {
+/// `before` is analyze(mesh). Returns whether the mesh changed.
+bool untangle_one(Mesh& mesh, const MeshReport& before, const FillOptions& options,
+                  std::span<const float> vertex_spacing, std::span<const std::uint32_t> crossed,
+                  UntangleStats& st) {
   Mesh trial;
   trial.vertices = mesh.vertices;
   trial.triangles.reserve(mesh.triangles.size());
@@ -727,16 +729,17 @@ void untangle_one(Mesh& mesh, const FillOptions& options, std::span<const float>
     trial.triangles.push_back(moved);
   }
   const std::size_t unchanged = kept - rewritten.size();
-  const MeshReport before = analyze(mesh), after = analyze(trial);
+  const MeshReport after = analyze(trial);
   if (after.non_manifold_edges > 0 || after.non_manifold_vertices > 0 ||
       !after.orientation_consistent || after.boundary_loops >= before.boundary_loops ||
       after.components != before.components || reinserted < stranded.size() ||
       find_self_intersections(trial, 1, unchanged).pairs > 0)
-    return;
+    return false;
   st.removed += crossed.size();
   st.closed += before.boundary_loops - after.boundary_loops;
   st.reinserted += reinserted;
   mesh = std::move(trial);
+  return true;
 }
 
 }  // namespace
@@ -755,12 +758,20 @@ UntangleStats untangle_gaps(Mesh& mesh, const FillOptions& options,
     for (std::uint32_t t : crossed) tris.push_back(mesh.triangles[t]);
     std::sort(tris.begin(), tris.end());
   }
+  if (targets.size() > kMaxUntangledGaps) {
+    st.skipped = targets.size() - kMaxUntangledGaps;
+    targets.resize(kMaxUntangledGaps);
+  }
   std::vector<std::uint32_t> list;
+  MeshReport report;  // of the mesh as it is now
+  bool stale = true;
   for (const std::vector<Triangle>& tris : targets) {
     list.clear();
     for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t)
       if (std::binary_search(tris.begin(), tris.end(), mesh.triangles[t])) list.push_back(t);
-    if (list.size() == tris.size()) untangle_one(mesh, options, vertex_spacing, list, st);
+    if (list.size() != tris.size()) continue;
+    if (stale) report = analyze(mesh);
+    stale = untangle_one(mesh, report, options, vertex_spacing, list, st);
   }
   return st;
 }

@@ -632,3 +632,37 @@ TEST_CASE("check_loops finds a small loop as a sampling gap and a long border as
       }
   }
 }
+
+TEST_CASE("untangle_gaps tries at most kMaxUntangledGaps gaps and counts the others",
+          "[recon][fill]") {
+  // Each try checks the whole mesh again: a scan with hundreds of such gaps took minutes.
+  // 20 copies of the spiked sheets side by side: the first 16 gaps are untangled, 4 stay open.
+  constexpr std::uint32_t kCopies = 20;
+  static_assert(kCopies > scanmesh::recon::kMaxUntangledGaps);
+  Mesh m;
+  for (std::uint32_t c = 0; c < kCopies; ++c) {
+    Mesh one;
+    spiked_sheets(one, Vec3(2.0 + 2.0 / 3.0, 2.0 + 1.0 / 3.0, 0));
+    const auto offset = static_cast<std::uint32_t>(m.vertices.size());
+    for (const Vec3& v : one.vertices) m.vertices.push_back(v + Vec3(10.0 * c, 0, 0));
+    for (const Triangle& t : one.triangles)
+      m.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  }
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  FillOptions opt;
+  opt.max_edges = 8;
+  opt.refine = false;
+  opt.max_perimeter_spacings = 10;
+  const FillStats first = fill_holes(m, opt, spacing);
+  REQUIRE(first.crossing == kCopies);
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, opt, spacing, first);
+  CHECK(u.closed == scanmesh::recon::kMaxUntangledGaps);
+  CHECK(u.skipped == kCopies - scanmesh::recon::kMaxUntangledGaps);
+  CHECK(u.removed == 3 * scanmesh::recon::kMaxUntangledGaps);
+  const auto r = analyze(m);
+  CHECK(r.boundary_loops == 2 * kCopies + u.skipped);
+  CHECK(r.non_manifold_edges == 0);
+  CHECK(r.orientation_consistent);
+  CHECK(find_self_intersections(m).pairs == 0);
+}
