@@ -169,10 +169,12 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
   // The samples are the points with an index divisible by the stride, visited in grid order:
   // consecutive samples are then near each other and share cached neighbourhoods. (The
   // statistics do not depend on the visiting order.)
+  std::size_t visited = 0;  // samples looked at (d1s: those that told a spacing)
   std::vector<std::uint64_t> is_sample((n + 63) / 64, 0);
   for (std::size_t i = 0; i < n; i += stride) is_sample[i / 64] |= std::uint64_t{1} << (i % 64);
   for (const std::uint32_t i : order) {
     if ((is_sample[i / 64] >> (i % 64) & 1) == 0) continue;
+    ++visited;
     const Vec3& p = points[i];
     // Every point within `radius` (radius doubled until it holds kNeighbours, up to the reach):
     // then the kNeighbours nearest are exact.
@@ -248,6 +250,18 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
       few.insert(few.end(), nb, nb + kFewNeighbours);
       few_extent.push_back(std::sqrt(sorted[kFewNeighbours - 1].d2));
     }
+  }
+  // Most samples saw only copies of themselves within the reach (a point sensor at rest
+  // streams the same reading; quantised readings repeat): the copies also shrink the reach,
+  // which assumes n distinct points. Then the statistics are those of the distinct points.
+  if (4 * d1s.size() < visited) {
+    std::vector<Vec3> distinct(points.begin(), points.end());
+    const auto lex = [](const Vec3& a, const Vec3& b) {
+      return a.x() != b.x() ? a.x() < b.x() : a.y() != b.y() ? a.y() < b.y() : a.z() < b.z();
+    };
+    std::sort(distinct.begin(), distinct.end(), lex);
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    if (distinct.size() < n) return estimate_spacing(distinct, max_samples);
   }
   est.sampled = d1s.size();
   est.nearest_mm = median(d1s);

@@ -263,6 +263,28 @@ TEST_CASE("cube options: none keeps every distinct point, a fixed cube reduces",
   CHECK(analyze(rf.mesh).boundary_loops == 0);
 }
 
+TEST_CASE("a scan whose every reading repeats many times meshes like its distinct points",
+          "[recon]") {
+  // A point sensor at rest streams the same reading (and quantised readings repeat): each point
+  // 40 times over. The copies used to hide every neighbour from the spacing estimate, which
+  // then failed the scan ("cube size too small"; without cubes "too far for one grid").
+  const auto distinct = test::sphere_points(3000, 10.0);
+  std::vector<Vec3> pts;
+  for (int copy = 0; copy < 40; ++copy) pts.insert(pts.end(), distinct.begin(), distinct.end());
+  for (const auto mode : {ReconstructOptions::CubeMode::kAuto, ReconstructOptions::CubeMode::kNone}) {
+    ReconstructOptions opt;
+    opt.cube_mode = mode;
+    const auto r = reconstruct(pts, opt);
+    const auto rep = analyze(r.mesh);
+    require_valid(r, rep);
+    CHECK(rep.boundary_loops == 0);
+    CHECK(rep.components == 1);
+    CHECK(rep.genus == 0);
+    CHECK(r.cube_mm == reconstruct(distinct, opt).cube_mm);
+    if (mode == ReconstructOptions::CubeMode::kNone) CHECK(r.reduced_points == distinct.size());
+  }
+}
+
 // The bulk: planar Delaunay patches (normals within a 30-degree cone) give most triangles of a
 // gently curved surface; the front starts from their borders, zips the seams between patches
 // and meshes the rest. Same guarantees, a fraction of the front's work.

@@ -295,6 +295,28 @@ TEST_CASE("estimate_spacing on a regular grid: nearest and cross are the step", 
   CHECK(recon::auto_cube_size(s) == Approx(step).epsilon(1e-9));
 }
 
+TEST_CASE("estimate_spacing of a cloud of repeated readings is that of its distinct points",
+          "[recon]") {
+  // A point sensor at rest streams the same reading: every point of the grid 40 times over.
+  // The copies used to hide every neighbour (nearest 0, and then "cube too small").
+  std::vector<Vec3> distinct, repeated;
+  const double step = 0.5;
+  for (int j = 0; j < 30; ++j)
+    for (int i = 0; i < 30; ++i) distinct.emplace_back(i * step, j * step, 0.1 * std::sin(0.3 * i));
+  for (int copy = 0; copy < 40; ++copy) repeated.insert(repeated.end(), distinct.begin(), distinct.end());
+  const auto d = recon::estimate_spacing(distinct), r = recon::estimate_spacing(repeated);
+  CHECK(d.nearest_mm > 0.4);
+  CHECK(r.nearest_mm == d.nearest_mm);
+  CHECK(r.cross_mm == d.cross_mm);
+  CHECK(r.thickness_mm == d.thickness_mm);
+  CHECK(recon::auto_cube_size(r) == recon::auto_cube_size(d));
+  // A few copies leave most neighbourhoods seeing other points: no second pass needed, and the
+  // spacing still right.
+  std::vector<Vec3> twice = distinct;
+  twice.insert(twice.end(), distinct.begin(), distinct.end());
+  CHECK(recon::estimate_spacing(twice).nearest_mm == Approx(d.nearest_mm).epsilon(0.05));
+}
+
 TEST_CASE("estimate_spacing on an anisotropic raster: cross is the line spacing", "[recon]") {
   std::vector<Vec3> pts;
   for (int line = 0; line < 12; ++line)
