@@ -97,6 +97,22 @@ TEST_CASE("open cylinder as a 5:1 anisotropic raster scan has exactly two loops"
   CHECK(rep.max_edge_length < 2.5);
 }
 
+TEST_CASE("open cylinder as a 40:1 raster scan (a point sensor's lines) has exactly two loops",
+          "[recon]") {
+  // Rings every 2 mm, samples every 0.05 mm along each ring: the next ring lies beyond the
+  // spacing estimate's first reach, and before stop 38 no point was meshed at all.
+  const auto pts = test::cylinder_raster(10.0, 40.0, 0.05, 2.0);
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(r.spacing.cross_mm == Approx(2.0).epsilon(0.02));
+  CHECK(rep.boundary_loops == 2);
+  CHECK(rep.components == 1);
+  CHECK(rep.genus == 0);
+  CHECK(r.outliers.empty());
+  CHECK(rep.max_edge_length < 5.0);  // no triangle spans more than two rings
+}
+
 // Exactly collinear points (a scan line) put a front vertex exactly on a new triangle's edge, or
 // a candidate exactly on a front edge: the front's edge tests must count touching as crossing.
 // With strict signs these surfaces came out with hundreds of crossing pairs and 15-36 loops.
