@@ -128,6 +128,15 @@ Residual quadric_residual(const Vec3* d, std::size_t k, double extent) {
   return out;
 }
 
+/// Cross neighbour test: whether w (squared length len2) lies more than 45 degrees off the
+/// unit direction u (|u.w| < |w| / sqrt 2, compared squared) and nearer than `best` (squared),
+/// which it then becomes.
+void cross_test(const Vec3& u, const Vec3& w, double len2, double& best) {
+  if (len2 == 0 || len2 >= best) return;
+  const double c = u.dot(w);
+  if (c * c < 0.5 * len2) best = len2;
+}
+
 /// A point near the sample: squared distance, index, offset from the sample.
 struct Near {
   double d2;
@@ -175,6 +184,21 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
   // The samples are the points with an index divisible by the stride, visited in grid order:
   // consecutive samples are then near each other and share cached neighbourhoods. (The
   // statistics do not depend on the visiting order.)
+  // cross_test over the points the grid visits within `radius` of sample i (other than i and
+  // its nearest), those within sqrt(limit2) of it: the rows visited reach a little further.
+  auto cross_in_grid = [&](std::uint32_t i, std::uint32_t nearest, const Vec3& u, double radius,
+                           double limit2, double& best) {
+    const Vec3& p = points[i];
+    grid.for_each_range_within(p, radius, [&](std::uint32_t b, std::uint32_t e) {
+      for (std::uint32_t s = b; s < e; ++s) {
+        const std::uint32_t j = order[s];
+        if (j == i || j == nearest) continue;
+        const Vec3 w = points[j] - p;
+        const double len2 = w.squaredNorm();
+        if (len2 <= limit2) cross_test(u, w, len2, best);
+      }
+    });
+  };
   std::size_t visited = 0;  // samples looked at (d1s: those that told a spacing)
   std::vector<std::uint64_t> is_sample((n + 63) / 64, 0);
   for (std::size_t i = 0; i < n; i += stride) is_sample[i / 64] |= std::uint64_t{1} << (i % 64);
@@ -230,23 +254,10 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
     // compared squared). Among the points within r it is exact; when there is none there, look
     // further, up to the reach.
     double best = std::numeric_limits<double>::infinity();  // squared
-    auto cross_test = [&](const Vec3& w, double len2) {
-      if (len2 == 0 || len2 >= best) return;
-      const double c = u.dot(w);
-      if (c * c < 0.5 * len2) best = len2;
-    };
     for (std::size_t a = 0; a < cnt; ++a)
-      if (a != first) cross_test(near[a].d, near[a].d2);
-    if (!std::isfinite(best) && r < reach) {
-      grid.for_each_range_within(p, reach, [&](std::uint32_t b, std::uint32_t e) {
-        for (std::uint32_t s = b; s < e; ++s) {
-          const std::uint32_t j = order[s];
-          if (j == i || j == nearest.j) continue;
-          const Vec3 w = points[j] - p;
-          cross_test(w, w.squaredNorm());
-        }
-      });
-    }
+      if (a != first) cross_test(u, near[a].d, near[a].d2, best);
+    if (!std::isfinite(best) && r < reach)
+      cross_in_grid(i, nearest.j, u, reach, std::numeric_limits<double>::infinity(), best);
     if (std::isfinite(best))
       d2s.push_back(std::sqrt(best));
     else
@@ -278,22 +289,9 @@ SpacingEstimate estimate_spacing(std::span<const Vec3> points, std::size_t max_s
   // reaches (anisotropy 4096). A 40:1 raster came out with no mesh at all before (stop 38).
   if (2 * no_cross.size() > d1s.size()) {
     for (const NoCross& c : no_cross) {
-      const Vec3& p = points[c.i];
       double best = std::numeric_limits<double>::infinity();
-      for (double r = 2 * reach; r <= 16 * reach && !std::isfinite(best); r *= 2) {
-        const double r2 = r * r;
-        grid.for_each_range_within(p, r, [&](std::uint32_t b, std::uint32_t e) {
-          for (std::uint32_t s = b; s < e; ++s) {
-            const std::uint32_t j = order[s];
-            if (j == c.i || j == c.nearest) continue;
-            const Vec3 w = points[j] - p;
-            const double len2 = w.squaredNorm();
-            if (len2 == 0 || len2 > r2 || len2 >= best) continue;
-            const double cu = c.u.dot(w);
-            if (cu * cu < 0.5 * len2) best = len2;
-          }
-        });
-      }
+      for (double r = 2 * reach; r <= 16 * reach && !std::isfinite(best); r *= 2)
+        cross_in_grid(c.i, c.nearest, c.u, r, r * r, best);
       if (std::isfinite(best)) d2s.push_back(std::sqrt(best));
     }
   }
