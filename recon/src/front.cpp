@@ -635,20 +635,13 @@ class Builder {
   /// few hundred on a single raw view (its grazing fringe). Kept in ascending id order: noted
   /// as triangles are made, renumbered where removed ones are compacted away.
   /// Their boxes are kept beside the ids, so that the test of each is one contiguous read.
-  struct LongTriangle {
-    Vec3 lo, hi;
-    std::uint32_t id;
-  };
+  using LongTriangle = detail::LongTriangle;
   std::vector<LongTriangle> long_tris_;
   double long_edge2_ = std::numeric_limits<double>::infinity();
   /// Whether triangle id is long; then `q` is its entry.
   bool long_entry(std::uint32_t id, LongTriangle& q) const {
     const Triangle& t = tris_[id];
-    const Vec3 &a = p_[t[0]], &b = p_[t[1]], &c = p_[t[2]];
-    if (!(std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > long_edge2_))
-      return false;
-    q = {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c), id};
-    return true;
+    return detail::long_entry(p_[t[0]], p_[t[1]], p_[t[2]], id, long_edge2_, q);
   }
   /// A triangle just made (the highest id so far).
   void note_if_long(std::uint32_t id) {

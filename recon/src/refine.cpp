@@ -83,10 +83,8 @@ class Refiner {
   /// holds now, so a stale entry costs a test, never a miss.
   void note_if_long(std::uint32_t t) {
     const Triangle& tr = tris_[t];
-    const Vec3 &a = p_[tr[0]], &b = p_[tr[1]], &c = p_[tr[2]];
-    if (std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) >
-        long_edge2_)
-      long_.push_back({t, a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)});
+    detail::LongTriangle q;
+    if (detail::long_entry(p_[tr[0]], p_[tr[1]], p_[tr[2]], t, long_edge2_, q)) long_.push_back(q);
   }
   /// The triangle holding directed edge a -> b (a complete), or kNone.
   std::uint32_t find_tri(std::uint32_t a, std::uint32_t b) {
@@ -146,11 +144,7 @@ class Refiner {
   /// one's bounding sphere, which holds for every triangle whose edges are at most sqrt(3) times
   /// that reach (each of its points lies within longest edge / sqrt(3) of a corner). The reach
   /// is 2.5 local spacings, at least reach_floor_; the longer triangles are listed (long_).
-  struct LongTriangle {
-    std::uint32_t t;
-    Vec3 lo, hi;
-  };
-  std::vector<LongTriangle> long_;
+  std::vector<detail::LongTriangle> long_;
   double reach_floor_ = 0;
   double long_edge2_ = std::numeric_limits<double>::infinity();
   std::vector<std::uint32_t> cand_, near_;
@@ -481,8 +475,8 @@ bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> g
   // edge / sqrt(3) of nt's bounding sphere; the longer ones are in long_ (see there).
   const detail::TriangleBounds nb(p_[nt[0]], p_[nt[1]], p_[nt[2]]);
   near_.clear();
-  for (const LongTriangle& l : long_)
-    if (!nb.box_misses(l.lo, l.hi)) near_.push_back(l.t);
+  for (const detail::LongTriangle& l : long_)
+    if (!nb.box_misses(l.lo, l.hi)) near_.push_back(l.id);
   grid_.for_each_range_within(nb.centre, nb.reach + std::max(2.5 * spacing(nt[0]), reach_floor_),
                               [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "scanmesh/recon/mesh.hpp"
 
@@ -20,6 +21,23 @@ inline double min_angle_cos(const Vec3& a, const Vec3& b, const Vec3& c) {
     worst = std::max(worst, u.dot(w) / den);
   }
   return worst;
+}
+
+/// A triangle too long for a crossing search that finds triangles by their corners near the
+/// new one (each point of a triangle lies within longest edge / sqrt(3) of a corner), with its
+/// box: the front's and the insertion's lists of such triangles.
+struct LongTriangle {
+  Vec3 lo, hi;
+  std::uint32_t id;
+};
+
+/// Whether triangle id = (a, b, c) has an edge longer than sqrt(limit2); then `q` is its entry.
+inline bool long_entry(const Vec3& a, const Vec3& b, const Vec3& c, std::uint32_t id, double limit2,
+                       LongTriangle& q) {
+  if (!(std::max({(a - b).squaredNorm(), (b - c).squaredNorm(), (c - a).squaredNorm()}) > limit2))
+    return false;
+  q = {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c), id};
+  return true;
 }
 
 /// Bounding sphere (centroid, distance to the farthest corner) and box of a triangle: the broad
