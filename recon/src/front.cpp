@@ -10,6 +10,7 @@
 #include "scanmesh/recon/front.hpp"
 
 #include "scanmesh/recon/intersections.hpp"
+#include "box_bins.hpp"
 #include "bulk.hpp"
 #include "loop_measure.hpp"
 #include "triangle_components.hpp"
@@ -279,6 +280,7 @@ class Builder {
       std::nth_element(sp.begin(), low, mid);
       const double long_edge = opt.relaxed_radius_factor * 1.5 * static_cast<double>(*low);
       long_edge2_ = long_edge * long_edge;
+      long_bins_.reset(long_edge);
       // Clearance of the front-edge tests: 8 float roundings (2^-24 relative) of the largest
       // coordinate, so that no vertex that just misses an edge lands on it in a float file; at
       // most 1e-3 of the median spacing (a cloud far from the origin, which a float file cannot
@@ -634,9 +636,14 @@ class Builder {
   /// search). Every one is tested there. 1-7 on the bunny points, igea and the merged scans; a
   /// few hundred on a single raw view (its grazing fringe). Kept in ascending id order: noted
   /// as triangles are made, renumbered where removed ones are compacted away.
-  /// Their boxes are kept beside the ids, so that the test of each is one contiguous read.
+  /// crosses_mesh finds them through long_bins_ (cells as wide as the long-edge limit): a
+  /// multi-view line scan lists thousands.
   using LongTriangle = detail::LongTriangle;
   std::vector<LongTriangle> long_tris_;
+  /// The long triangles' ids binned by their boxes; a rewritten one is binned again under its
+  /// new box (its old bins then name it too: crosses_mesh tests the box it has now), and all
+  /// are binned anew where the ids are renumbered.
+  detail::BoxBins long_bins_;
   double long_edge2_ = std::numeric_limits<double>::infinity();
   /// Whether triangle id is long; then `q` is its entry.
   bool long_entry(std::uint32_t id, LongTriangle& q) const {
@@ -646,7 +653,9 @@ class Builder {
   /// A triangle just made (the highest id so far).
   void note_if_long(std::uint32_t id) {
     LongTriangle q;
-    if (long_entry(id, q)) long_tris_.push_back(q);
+    if (!long_entry(id, q)) return;
+    long_tris_.push_back(q);
+    long_bins_.insert(id, q.lo, q.hi);
   }
   /// Triangle id was rewritten in place: its entry is added, updated or dropped.
   void renote(std::uint32_t id) {
@@ -656,10 +665,10 @@ class Builder {
     LongTriangle q;
     if (!long_entry(id, q)) {
       if (listed) long_tris_.erase(at);
-    } else if (listed) {
-      *at = q;
     } else {
-      long_tris_.insert(at, q);
+      if (listed) *at = q;
+      else long_tris_.insert(at, q);
+      long_bins_.insert(id, q.lo, q.hi);
     }
   }
 #ifndef NDEBUG
@@ -1661,6 +1670,8 @@ std::size_t Builder::repair_fans(bool thorough) {
       ++k;
     }
     long_tris_.resize(kept_long);
+    long_bins_.clear();
+    for (const LongTriangle& q : long_tris_) long_bins_.insert(q.id, q.lo, q.hi);
     tris_.resize(w);
 #ifndef NDEBUG
     check_long_list();
@@ -2308,11 +2319,19 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
     if (!tb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_tris_.push_back(id);
     return false;
   });
-  for (const LongTriangle& q : long_tris_) {  // the search above saw those it stamped
-    if (tb.box_misses(q.lo, q.hi) || tri_stamp_[q.id] == stamp_) continue;
-    tri_stamp_[q.id] = stamp_;
-    near_tris_.push_back(q.id);
-  }
+  // The long triangles near t (the search above saw those it stamped). Their bins may name
+  // a triangle no longer long or since rewritten: its box now decides, as in the list.
+  long_bins_.visit(tb.lo, tb.hi, [&](std::uint32_t id) {
+    LongTriangle q;
+    if (tri_stamp_[id] == stamp_ || !long_entry(id, q) || tb.box_misses(q.lo, q.hi)) return;
+    tri_stamp_[id] = stamp_;
+    near_tris_.push_back(id);
+  });
+#ifndef NDEBUG
+  for (const LongTriangle& q : long_tris_)
+    assert((tb.box_misses(q.lo, q.hi) || tri_stamp_[q.id] == stamp_) &&
+           "the long triangles' bins missed one near a new triangle");
+#endif
   const Vec3 n = (q1 - q0).cross(q2 - q0);
   const double tol = on_plane_tol(n);
   for (std::uint32_t id : near_tris_)

@@ -3,6 +3,7 @@
 #include "scanmesh/recon/refine.hpp"
 
 #include "scanmesh/recon/intersections.hpp"
+#include "box_bins.hpp"
 #include "triangle_shape.hpp"
 
 #include <algorithm>
@@ -84,7 +85,9 @@ class Refiner {
   void note_if_long(std::uint32_t t) {
     const Triangle& tr = tris_[t];
     detail::LongTriangle q;
-    if (detail::long_entry(p_[tr[0]], p_[tr[1]], p_[tr[2]], t, long_edge2_, q)) long_.push_back(q);
+    if (!detail::long_entry(p_[tr[0]], p_[tr[1]], p_[tr[2]], t, long_edge2_, q)) return;
+    long_bins_.insert(static_cast<std::uint32_t>(long_.size()), q.lo, q.hi);
+    long_.push_back(q);
   }
   /// The triangle holding directed edge a -> b (a complete), or kNone.
   std::uint32_t find_tri(std::uint32_t a, std::uint32_t b) {
@@ -145,6 +148,7 @@ class Refiner {
   /// that reach (each of its points lies within longest edge / sqrt(3) of a corner). The reach
   /// is 2.5 local spacings, at least reach_floor_; the longer triangles are listed (long_).
   std::vector<detail::LongTriangle> long_;
+  detail::BoxBins long_bins_;  // positions in long_, binned by their boxes
   double reach_floor_ = 0;
   double long_edge2_ = std::numeric_limits<double>::infinity();
   std::vector<std::uint32_t> cand_, near_;
@@ -196,6 +200,7 @@ void Refiner::set_reach_floor() {
   std::nth_element(sample.begin(), at, sample.end());
   reach_floor_ = 2.5 * static_cast<double>(*at);
   long_edge2_ = 3.0 * reach_floor_ * reach_floor_;
+  long_bins_.reset(std::sqrt(long_edge2_));
 }
 
 std::vector<std::uint32_t> Refiner::find_slivers_and_long() {
@@ -475,8 +480,9 @@ bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> g
   // edge / sqrt(3) of nt's bounding sphere; the longer ones are in long_ (see there).
   const detail::TriangleBounds nb(p_[nt[0]], p_[nt[1]], p_[nt[2]]);
   near_.clear();
-  for (const detail::LongTriangle& l : long_)
-    if (!nb.box_misses(l.lo, l.hi)) near_.push_back(l.id);
+  long_bins_.visit(nb.lo, nb.hi, [&](std::uint32_t k) {
+    if (!nb.box_misses(long_[k].lo, long_[k].hi)) near_.push_back(long_[k].id);
+  });
   grid_.for_each_range_within(nb.centre, nb.reach + std::max(2.5 * spacing(nt[0]), reach_floor_),
                               [&](std::uint32_t first, std::uint32_t last) {
     for (std::uint32_t s = first; s < last; ++s) {
