@@ -269,6 +269,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["bulk_patches"] = res.bulk_patches;
     j["bulk_triangles"] = res.bulk_triangles;
     j["dropped_components"] = res.dropped_components;
+    j["dropped_specks"] = res.dropped_specks;
     j["output"] = args.output;
     j["notes"] = notes;
     if (!args.preview.empty()) j["preview"] = args.preview;

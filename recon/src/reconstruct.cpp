@@ -367,6 +367,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   res.bulk_patches = fr.bulk_patches;
   res.bulk_triangles = fr.bulk_triangles;
   res.dropped_components = fr.dropped_components;
+  res.dropped_specks = fr.dropped_specks;
   if (gaps || loops.slit) {
     stage("gaps");
     std::vector<float> vertex_spacing(used);

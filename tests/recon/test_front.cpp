@@ -584,3 +584,30 @@ TEST_CASE("stray readings in the air over a scan keep the cloud's spacing cap", 
       longest = std::max(longest, (r.mesh.vertices[t[e]] - r.mesh.vertices[t[(e + 1) % 3]]).norm());
   CHECK(longest < 10.7);
 }
+
+TEST_CASE("a lone triangle of stray points beside the part is dropped, its points outliers",
+          "[recon]") {
+  // Three readings close together, well off a sphere (a sensor's spikes that landed near each
+  // other): a seed triangle there cannot grow.
+  auto pts = test::sphere_points(20000, 10.0);
+  const Vec3 stray[3] = {Vec3(16, 0, 0), Vec3(16.3, 0, 0), Vec3(16.15, 0.26, 0)};
+  pts.insert(pts.end(), std::begin(stray), std::end(stray));
+  const auto r = reconstruct(pts);
+  const auto rep = analyze(r.mesh);
+  require_valid(r, rep);
+  CHECK(r.dropped_specks == 1);
+  CHECK(rep.components == 1);
+  CHECK(rep.boundary_loops == 0);
+  for (const Vec3& s : stray) {
+    CHECK(std::count(r.outliers.begin(), r.outliers.end(), s) == 1);
+    CHECK(std::count(r.mesh.vertices.begin(), r.mesh.vertices.end(), s) == 0);
+  }
+
+  // A cloud that is only such a triangle keeps it (every point: the auto cube would merge two).
+  const std::vector<Vec3> alone(std::begin(stray), std::end(stray));
+  ReconstructOptions none;
+  none.cube_mode = ReconstructOptions::CubeMode::kNone;
+  const auto a = reconstruct(alone, none);
+  CHECK(a.mesh.triangles.size() == 1);
+  CHECK(a.dropped_specks == 0);
+}

@@ -104,6 +104,9 @@ struct FrontResult {
   std::size_t turning_points = 0;  ///< points near which the surface turns back (crossing guard)
   /// Small components removed because they crossed another one (their points are outliers).
   std::size_t dropped_components = 0;
+  /// Components of one or two triangles beside a large one, removed (their points are
+  /// outliers): seeds among a few stray points (spikes) that could not grow.
+  std::size_t dropped_specks = 0;
   /// The front's local spacing of a point is frames.spacing capped at this (2.5 x the median),
   /// except on a region sampled sparsely as a whole (a point whose neighbours within three of
   /// its spacings are at least 12, lie on a plane with it and are as sparse: 2.5 x their median

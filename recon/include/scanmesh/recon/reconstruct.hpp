@@ -79,6 +79,8 @@ struct ReconstructResult {
   std::size_t turning_points = 0;  ///< points the crossing guard tests against everything near
   /// Small components the front removed because they crossed another (points then inserted).
   std::size_t dropped_components = 0;
+  /// Lone one- or two-triangle pieces beside a large component, removed (front.hpp).
+  std::size_t dropped_specks = 0;
 };
 
 /// Throws GeometryError with a clear message for inputs that cannot make a surface: no points,
