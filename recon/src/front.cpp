@@ -592,11 +592,7 @@ class Builder {
   /// most of a search's time is those fetches (list node, triangle, corners: cache misses).
   template <class F>
   bool any_listed_triangle_near(const Vec3& c, double reach, F&& f) const {
-    if (tri_stamp_.size() < tris_.size()) tri_stamp_.resize(tris_.size() + tris_.size() / 4, 0);
-    if (++stamp_ == 0) {  // wrapped: clear every stamp, start again
-      std::fill(tri_stamp_.begin(), tri_stamp_.end(), std::uint16_t{0});
-      stamp_ = 1;
-    }
+    seen_.start(tris_.size());
     const std::uint32_t* order = grid_.order().data();
     const double reach2 = reach * reach;
     bool stop = false;
@@ -607,9 +603,7 @@ class Builder {
         if ((p_[v] - c).squaredNorm() > reach2) continue;
         for (std::uint32_t n = corner_head_[v]; n != kNone && !stop; n = corners_[n].next) {
           const std::uint32_t id = corners_[n].tri;
-          if (tri_stamp_[id] == stamp_) continue;
-          tri_stamp_[id] = stamp_;
-          stop = f(id);
+          if (seen_.take(id)) stop = f(id);
         }
       }
     });
@@ -627,10 +621,9 @@ class Builder {
   std::vector<CornerNode> corners_;
   std::uint32_t free_corner_ = kNone;  // recycled nodes, linked through next
   std::vector<std::uint32_t> near_tris_;
-  /// any_listed_triangle_near: per triangle, the search that last saw it (stamp_; 2 bytes a
-  /// triangle). Scratch state of a const search, hence mutable.
-  mutable std::vector<std::uint16_t> tri_stamp_;
-  mutable std::uint16_t stamp_ = 0;
+  /// any_listed_triangle_near: the triangles the current search has seen. Scratch state of a
+  /// const search, hence mutable.
+  mutable detail::SearchStamps seen_;
   /// Triangles with an edge longer than long_edge2_ (squared): those the corner search of
   /// crosses_mesh, which assumes edges about as long as the new triangle's radius, can miss
   /// (a triangle between sparse points passing over a dense region: its corners lie beyond the
@@ -2345,13 +2338,13 @@ bool Builder::crosses_mesh(const Triangle& t, double radius, bool touching) {
   // a triangle no longer long or since rewritten: its box now decides, as in the list.
   long_bins_.visit(tb.lo, tb.hi, [&](std::uint32_t id) {
     LongTriangle q;
-    if (tri_stamp_[id] == stamp_ || !long_entry(id, q) || tb.box_misses(q.lo, q.hi)) return;
-    tri_stamp_[id] = stamp_;
+    if (seen_.seen(id) || !long_entry(id, q) || tb.box_misses(q.lo, q.hi)) return;
+    seen_.take(id);
     near_tris_.push_back(id);
   });
 #ifndef NDEBUG
   for (const LongTriangle& q : long_tris_)
-    assert((tb.box_misses(q.lo, q.hi) || tri_stamp_[q.id] == stamp_) &&
+    assert((tb.box_misses(q.lo, q.hi) || seen_.seen(q.id)) &&
            "the long triangles' bins missed one near a new triangle");
 #endif
   const Vec3 n = (q1 - q0).cross(q2 - q0);

@@ -152,8 +152,7 @@ class Refiner {
   double reach_floor_ = 0;
   double long_edge2_ = std::numeric_limits<double>::infinity();
   std::vector<std::uint32_t> cand_, near_;
-  std::vector<std::uint16_t> near_stamp_;  // crosses: per triangle, the call that saw it
-  std::uint16_t stamp_ = 0;
+  detail::SearchStamps seen_;  // crosses: the triangles the current call has seen
   std::vector<std::pair<std::uint32_t, std::uint32_t>> queue_;
   std::vector<std::uint8_t> touched_;  // per vertex: a flip changed its triangles
   bool mending_sliver_ = false;        // try_flip is mending slivers
@@ -482,20 +481,12 @@ bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> g
   // edge / sqrt(3) of nt's bounding sphere; the longer ones are in long_ (see there).
   const detail::TriangleBounds nb(p_[nt[0]], p_[nt[1]], p_[nt[2]]);
   near_.clear();
-  // Each triangle once: near_stamp_ holds, per triangle, the call that last took it (the long
-  // list's boxes may be stale, so there only a triangle taken is stamped).
-  if (near_stamp_.size() < tris_.size()) near_stamp_.resize(tris_.size() + tris_.size() / 4, 0);
-  if (++stamp_ == 0) {  // wrapped: clear every stamp, start again
-    std::fill(near_stamp_.begin(), near_stamp_.end(), std::uint16_t{0});
-    stamp_ = 1;
-  }
-  auto take = [&](std::uint32_t t) {
-    if (near_stamp_[t] == stamp_) return;
-    near_stamp_[t] = stamp_;
-    near_.push_back(t);
-  };
+  // Each triangle once (the long list's boxes may be stale, so there only a triangle taken is
+  // marked).
+  seen_.start(tris_.size());
   long_bins_.visit(nb.lo, nb.hi, [&](std::uint32_t k) {
-    if (!nb.box_misses(long_[k].lo, long_[k].hi)) take(long_[k].id);
+    const detail::LongTriangle& l = long_[k];
+    if (!nb.box_misses(l.lo, l.hi) && seen_.take(l.id)) near_.push_back(l.id);
   });
   grid_.for_each_range_within(nb.centre, nb.reach + std::max(2.5 * spacing(nt[0]), reach_floor_),
                               [&](std::uint32_t first, std::uint32_t last) {
@@ -504,8 +495,7 @@ bool Refiner::crosses(const Triangle& nt, std::initializer_list<std::uint32_t> g
       if (!complete(j)) continue;
       for (std::uint32_t t : around(j)) {
         const Triangle& q = tris_[t];
-        if (near_stamp_[t] == stamp_) continue;  // taken, or its box tested (below)
-        near_stamp_[t] = stamp_;
+        if (!seen_.take(t)) continue;  // taken, or its box tested (below)
         if (!nb.box_misses(p_[q[0]], p_[q[1]], p_[q[2]])) near_.push_back(t);
       }
     }

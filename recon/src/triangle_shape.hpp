@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "scanmesh/recon/mesh.hpp"
 
@@ -65,6 +67,32 @@ struct TriangleBounds {
       if (l[k] > hi[k] || h[k] < lo[k]) return true;
     return false;
   }
+};
+
+/// Per-triangle marks of the current crossing search, 2 bytes a triangle: start() begins a
+/// search (and clears every mark when the 16-bit counter wraps), take(t) marks t and says
+/// whether it was unmarked, so that a search sees each triangle once however many of its
+/// corners or list entries lead to it.
+class SearchStamps {
+ public:
+  /// A new search over triangle ids below `triangles`.
+  void start(std::size_t triangles) {
+    if (stamp_.size() < triangles) stamp_.resize(triangles + triangles / 4, 0);
+    if (++now_ == 0) {  // wrapped: clear every mark, start again
+      std::fill(stamp_.begin(), stamp_.end(), std::uint16_t{0});
+      now_ = 1;
+    }
+  }
+  [[nodiscard]] bool seen(std::uint32_t t) const { return stamp_[t] == now_; }
+  bool take(std::uint32_t t) {
+    if (stamp_[t] == now_) return false;
+    stamp_[t] = now_;
+    return true;
+  }
+
+ private:
+  std::vector<std::uint16_t> stamp_;
+  std::uint16_t now_ = 0;
 };
 
 }  // namespace scanmesh::recon::detail
