@@ -525,6 +525,13 @@ class Builder {
   void orient_components(detail::TriangleComponents& components);
   /// Removes every smaller component that crosses another component (see the definition).
   void drop_crossing_components();
+  /// Before whole components are erased from tris_ (the others move down): the candidates'
+  /// no-candidate marks are forgotten, and later fan checks look at every vertex.
+  void triangles_moved() {
+    forget_no_candidates();
+    bulk_kept_ = 0;
+    fan_dirty_.clear();
+  }
   bool drop_specks(detail::TriangleComponents& components);
   void rebuild_front();
   /// Replaces the front around the corners of `removed` (triangles repair_fans dropped).
@@ -1923,9 +1930,7 @@ void Builder::rebuild_front() {
 /// pair; its points become outliers, and the insertion stage puts them into the triangles they
 /// lie on.
 void Builder::drop_crossing_components() {
-  forget_no_candidates();
-  bulk_kept_ = 0;  // the triangles may move: later fan checks look at every vertex
-  fan_dirty_.clear();
+  triangles_moved();
   res_.dropped_components += remove_crossing_components(p_, tris_);
 }
 
@@ -1942,9 +1947,7 @@ bool Builder::drop_specks(detail::TriangleComponents& components) {
   std::size_t specks = 0;
   for (std::uint32_t s : size) specks += s <= kSpeckTriangles ? 1 : 0;
   if (specks == 0) return false;
-  forget_no_candidates();
-  bulk_kept_ = 0;
-  fan_dirty_.clear();
+  triangles_moved();
   std::erase_if(tris_, [&](const Triangle& t) { return size[components.of(t)] <= kSpeckTriangles; });
   res_.dropped_specks += specks;
   return true;
