@@ -256,6 +256,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["untangled_gaps"] = res.untangle.closed;
     j["untangle_removed_triangles"] = res.untangle.removed;
     j["untangle_skipped_gaps"] = res.untangle.skipped;
+    j["untangle_split_fans"] = res.untangle.split_fans;
     j["removed_fan_triangles"] = res.removed_fan_triangles;
     j["inserted_points"] = res.refine.inserted;
     j["inserted_by_edge_split"] = res.refine.edge_splits;

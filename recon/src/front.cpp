@@ -15,6 +15,7 @@
 #include "loop_measure.hpp"
 #include "triangle_components.hpp"
 #include "triangle_shape.hpp"
+#include "vertex_triangles.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -117,31 +118,6 @@ class EdgeMap {
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> vals_;
   std::size_t cap_ = 0, size_ = 0;
-};
-
-/// The triangles around every vertex, as compressed lists: those of vertex v are
-/// list[start[v]] .. list[start[v + 1] - 1], in triangle order. 4 bytes per corner; used by
-/// the passes that need adjacency once (fan repair, front rebuild, orientation) instead of an
-/// array of every half-edge. With `slot`, the lists are indexed by slot(v) (below n) instead.
-struct VertexTriangles {
-  std::vector<std::uint32_t> start, list;
-
-  VertexTriangles(std::size_t n, const std::vector<Triangle>& tris)
-      : VertexTriangles(n, tris, [](std::uint32_t v) { return v; }) {}
-  /// slot(v) may be kNone for a vertex left out.
-  template <class Slot>
-  VertexTriangles(std::size_t n, const std::vector<Triangle>& tris, Slot slot) : start(n + 1, 0) {
-    constexpr std::uint32_t kOut = 0xffffffffu;
-    for (const Triangle& t : tris)
-      for (std::uint32_t v : t)
-        if (const std::uint32_t s = slot(v); s != kOut) ++start[s + 1];
-    for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
-    list.resize(start[n]);
-    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-    for (std::uint32_t t = 0; t < tris.size(); ++t)
-      for (std::uint32_t v : tris[t])
-        if (const std::uint32_t s = slot(v); s != kOut) list[fill[s]++] = t;
-  }
 };
 
 /// The triangles around a few vertices `vs` (ascending), in triangle order: those of vs[c] are
@@ -1551,7 +1527,7 @@ void Builder::check_bulk_fans() const {
   for (std::size_t t = bulk_kept_; t < tris_.size(); ++t)
     for (std::uint32_t v : tris_[t]) examined[v] = 1;
   for (std::uint32_t v : fan_dirty_) examined[v] = 1;
-  const VertexTriangles adj(p_.size(), tris_);
+  const detail::VertexTriangles adj(p_.size(), tris_);
   std::vector<int> fan;
   std::vector<std::uint32_t> size;
   for (std::uint32_t v = 0; v < p_.size(); ++v) {
@@ -1612,7 +1588,7 @@ std::size_t Builder::repair_fans(bool thorough) {
             rank[v] = static_cast<std::uint32_t>(visit.size());
             visit.push_back(v);
           }
-      VertexTriangles adj(visit.size(), tris_,
+      detail::VertexTriangles adj(visit.size(), tris_,
                           [&](std::uint32_t v) { return rank[v] < kSelected ? rank[v] : kNone; });
       start = std::move(adj.start);
       vt = std::move(adj.list);
@@ -1883,7 +1859,7 @@ void Builder::rebuild_front() {
   // the whole reconstruction). Edges are visited in (u, v) order, the half starting at u
   // first: the order the front's edge ids, and so its tie-breaking, depend on.
   const std::size_t n = p_.size();
-  const VertexTriangles adj(n, tris_);
+  const detail::VertexTriangles adj(n, tris_);
   const std::vector<std::uint32_t>& start = adj.start;
   const std::vector<std::uint32_t>& vt = adj.list;
   edges_map_ = EdgeMap(tris_.size() * 3 / 2 + 16);
@@ -1976,7 +1952,7 @@ void Builder::orient_components(detail::TriangleComponents& components) {
     // Checked against the edges: {u, v} is a boundary edge when exactly one of u's triangles
     // contains v.
     std::vector<std::uint8_t> open_edges(ncomp, 0);
-    const VertexTriangles adj(p_.size(), tris_);
+    const detail::VertexTriangles adj(p_.size(), tris_);
     for (const Triangle& t : tris_)
       for (std::size_t k = 0; k < 3; ++k) {
         const std::uint32_t u = t[k], v = t[(k + 1) % 3];

@@ -471,6 +471,55 @@ TEST_CASE("untangle_gaps leaves a gap alone when untangling it would drop a poin
   CHECK(m.vertices.size() == before.vertices.size());
 }
 
+TEST_CASE("untangle_gaps refuses, without a trial, a removal that would split a vertex's fan",
+          "[recon][fill]") {
+  // A flat 4 x 4 grid of unit squares split along their diagonals; the "gap" is given by the
+  // triangles its patch would cross. Around the interior vertex 12 (at 2, 2) the six triangles
+  // run 13-18, 18-17, 17-11, 11-6, 6-7, 7-13; around the border vertex 2 three run 1-7, 7-8,
+  // 8-3. Removing two of 12's that are not neighbours, or the middle one of 2's, leaves that
+  // vertex two fans, which no fill mends: refused from its own triangles. Removing two
+  // neighbours (a quad hole inside, a notch at the border) is tried in full and refused there:
+  // closing the quad leaves as many loops as before, and the notch is part of the border loop.
+  Mesh m;
+  for (std::uint32_t j = 0; j < 5; ++j)
+    for (std::uint32_t i = 0; i < 5; ++i) m.vertices.emplace_back(i, j, 0);
+  for (std::uint32_t j = 0; j < 4; ++j)
+    for (std::uint32_t i = 0; i < 4; ++i) {
+      const std::uint32_t v = j * 5 + i;
+      m.triangles.push_back({v, v + 1, v + 6});
+      m.triangles.push_back({v, v + 6, v + 5});
+    }
+  const auto [removed, split] = GENERATE(table<std::vector<Triangle>, std::size_t>({
+      {{Triangle{12, 13, 18}, Triangle{11, 12, 17}}, 1},  // apart around vertex 12
+      {{Triangle{2, 8, 7}}, 1},                           // the middle of border vertex 2's fan
+      {{Triangle{12, 13, 18}, Triangle{12, 18, 17}}, 0},  // neighbours: a quad hole
+      {{Triangle{1, 2, 7}, Triangle{1, 7, 6}}, 0},        // neighbours at the border: a notch
+  }));
+  FillStats first;
+  first.crossing = 1;
+  std::vector<std::uint32_t>& crossed = first.crossed.emplace_back();
+  for (const Triangle& t : removed) {
+    const auto it = std::find(m.triangles.begin(), m.triangles.end(), t);
+    REQUIRE(it != m.triangles.end());
+    crossed.push_back(static_cast<std::uint32_t>(it - m.triangles.begin()));
+  }
+  std::sort(crossed.begin(), crossed.end());
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  FillOptions opt;
+  opt.max_edges = 8;
+  opt.refine = false;
+  opt.max_perimeter_spacings = 10;
+  const Mesh before = m;
+  const scanmesh::recon::UntangleStats u = scanmesh::recon::untangle_gaps(m, opt, spacing, first);
+  INFO("removed " << removed.size() << " triangles, the first " << removed[0][0] << "-"
+                  << removed[0][1] << "-" << removed[0][2]);
+  CHECK(u.split_fans == split);
+  CHECK(u.removed == 0);
+  CHECK(u.closed == 0);
+  CHECK(m.triangles == before.triangles);
+  CHECK(m.vertices == before.vertices);
+}
+
 namespace {
 
 /// A dense strip (columns x = -0.2 and x = 0, rows 0.2 apart from y = -0.2 to 1.2) and a coarse

@@ -62,11 +62,16 @@ struct UntangleStats {
   std::size_t closed = 0;      ///< boundary loops fewer than before
   std::size_t reinserted = 0;  ///< vertices the removal stranded, put back into a patch
   std::size_t skipped = 0;     ///< gaps not tried: beyond kMaxUntangledGaps
+  /// Gaps left as they are without a trial: removing the triangles their patch crosses would
+  /// leave a vertex with two fans (or an edge with three triangles), which no fill can mend.
+  std::size_t split_fans = 0;
 };
 
-/// untangle_gaps tries at most this many gaps. Each try checks the whole mesh again (its loops,
+/// untangle_gaps tries at most this many gaps. Each trial checks the whole mesh again (its loops,
 /// components and crossings), so a scan with hundreds of such gaps took minutes (a volume of
-/// random points: 156 gaps, 9.4 s of 100k points); the real scans have at most 3.
+/// random points: 156 gaps, 9.4 s of 100k points); the real scans have at most 3. A gap whose
+/// removal would split a vertex's fan (`split_fans`) is refused from its corners' own triangles,
+/// without a trial.
 inline constexpr std::size_t kMaxUntangledGaps = 16;
 
 /// A sampling gap that stays open because its patch would cross the mesh is often a gap that a
