@@ -1,10 +1,11 @@
 // libFuzzer entry point for the mesh topology code that `scanmesh inspect` and the hole filling
 // run on meshes from outside: a mesh parsed from the bytes (first byte: OBJ, ASCII/binary STL or
 // PLY; next bits of that byte: flat patches or refined and faired ones, and whether only loops
-// short for a spacing from the second byte are closed) goes through analyze()
-// fill_holes() and find_self_intersections(). Only scanmesh::Error is an expected outcome; a
-// manifold, consistently oriented input must stay so after filling, with each filled loop gone,
-// the added vertices counted, the existing ones unmoved, and no crossing added by a patch.
+// short for a spacing from the second byte are closed) goes through analyze(), fill_holes(),
+// untangle_gaps() and find_self_intersections(). Only scanmesh::Error is an expected outcome; a
+// manifold, consistently oriented input must stay so after filling and untangling, with each
+// filled loop gone, the added vertices counted, the existing ones unmoved, and no crossing added
+// by a patch.
 // SPDX-License-Identifier: MIT
 #include <cstddef>
 #include <cstdint>
@@ -82,6 +83,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         __builtin_trap();
       if (after.boundary_loops + stats.filled != before.boundary_loops) __builtin_trap();
       if (recon::find_self_intersections(mesh, 0, old_triangles).pairs != 0) __builtin_trap();
+      // The loops left open because their patch crosses the mesh, untangled where a few
+      // triangles reach through them: the mesh stays clean, with as many components, as many
+      // vertices used, and exactly the loops it closed fewer.
+      if (stats.crossing > 0 && !opt.refine && opt.max_perimeter_spacings > 0) {
+        const std::size_t old_vertices = mesh.vertices.size();
+        const recon::UntangleStats u = recon::untangle_gaps(mesh, opt, spacing, stats);
+        const recon::MeshReport untangled = recon::analyze(mesh);
+        if (untangled.non_manifold_edges != 0 || untangled.non_manifold_vertices != 0 ||
+            !untangled.orientation_consistent || untangled.components != after.components ||
+            untangled.referenced_vertices != after.referenced_vertices ||
+            mesh.vertices.size() != old_vertices ||
+            untangled.boundary_loops + u.closed != after.boundary_loops ||
+            (u.closed == 0) != (u.removed == 0))
+          __builtin_trap();
+      }
     }
   } catch (const scanmesh::Error&) {
     // malformed input: the expected way to reject it

@@ -821,6 +821,10 @@ UntangleStats untangle_gaps(Mesh& mesh, const FillOptions& options,
     st.skipped = targets.size() - kMaxUntangledGaps;
     targets.resize(kMaxUntangledGaps);
   }
+  if (targets.empty()) return st;
+  for (const Triangle& t : mesh.triangles)
+    for (std::uint32_t v : t)
+      if (v >= mesh.vertices.size()) (void)analyze(mesh);  // throws, naming the triangle
   std::vector<std::uint32_t> list;
   std::optional<MeshReport> report;  // of the mesh as it is now, once needed
   std::optional<detail::VertexTriangles> vt;
