@@ -638,46 +638,21 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
 
 namespace {
 
-/// Whether vertex v's triangles other than `removed` (sorted) are certainly not manifold at v:
-/// they form more than one fan (joined across the edges at v they share), or an edge at v has
-/// three or more of them. Undecided (false) when one of them repeats a corner.
-bool not_manifold_without(const Mesh& mesh, const detail::VertexTriangles& vt,
-                          std::span<const std::uint32_t> removed, std::uint32_t v) {
-  constexpr std::size_t kMaxFan = 64;  // more: undecided
-  std::array<std::uint32_t, kMaxFan> next{}, prev{}, root{};  // the corners after and before v
-  std::size_t n = 0;
+/// Whether vertex v's triangles other than `removed` (sorted) form more than one fan: the mesh
+/// is then not manifold at v. False when one of them repeats a corner (undecided).
+bool splits_fan(const Mesh& mesh, const detail::VertexTriangles& vt,
+                std::span<const std::uint32_t> removed, std::uint32_t v) {
+  std::vector<std::uint32_t> ids;
   for (std::uint32_t t : vt.of(v)) {
     if (std::binary_search(removed.begin(), removed.end(), t)) continue;
     const Triangle& tri = mesh.triangles[t];
-    if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] || n == kMaxFan) return false;
-    const int k = tri[0] == v ? 0 : (tri[1] == v ? 1 : 2);
-    next[n] = tri[(k + 1) % 3];
-    prev[n] = tri[(k + 2) % 3];
-    root[n] = static_cast<std::uint32_t>(n);
-    ++n;
+    if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) return false;
+    ids.push_back(t);
   }
-  auto find = [&](std::uint32_t x) {
-    while (root[x] != x) x = root[x] = root[root[x]];
-    return x;
-  };
-  std::size_t fans = n;
-  for (std::size_t i = 0; i < n; ++i) {
-    for (const std::uint32_t w : {next[i], prev[i]}) {
-      std::size_t sharing = 1;  // triangles at v with the edge v-w
-      for (std::size_t j = 0; j < n; ++j) {
-        if (j == i || (next[j] != w && prev[j] != w)) continue;
-        ++sharing;
-        const std::uint32_t a = find(static_cast<std::uint32_t>(i)),
-                            b = find(static_cast<std::uint32_t>(j));
-        if (a != b) {
-          root[std::max(a, b)] = std::min(a, b);
-          --fans;
-        }
-      }
-      if (sharing > 2) return true;
-    }
-  }
-  return fans > 1;
+  std::vector<int> fan;
+  std::vector<std::uint32_t> size;
+  return detail::fans_of(mesh.triangles, v, ids.data(), static_cast<std::uint32_t>(ids.size()),
+                         fan, size) > 1;
 }
 
 /// One gap's untangling (see untangle_gaps): `mesh` and `st` unchanged when it does not help.
@@ -691,14 +666,13 @@ bool untangle_one(Mesh& mesh, std::optional<MeshReport>& before, const detail::V
     loose.insert(loose.end(), mesh.triangles[t].begin(), mesh.triangles[t].end());
   std::sort(loose.begin(), loose.end());
   loose.erase(std::unique(loose.begin(), loose.end()), loose.end());
-  // A removal that leaves a corner of the removed triangles with two fans (or an edge with three
-  // triangles) cannot be untangled: fill_holes leaves a mesh that is not manifold as it is, so
-  // nothing would be put back and the trial would be refused below. Said here from the corners'
-  // own triangles instead of after a copy of the mesh, a fill and an analysis of the whole of it
-  // (on a six-view line scan of 205k points, three such trials were a fifth of the
-  // reconstruction's instructions).
+  // A removal that leaves a corner of the removed triangles with two fans cannot be untangled:
+  // fill_holes leaves a mesh that is not manifold as it is, so nothing would be put back and the
+  // trial would be refused below. Said here from the corners' own triangles instead of after a
+  // copy of the mesh, a fill and an analysis of the whole of it (on a six-view line scan of 205k
+  // points, three such trials were a fifth of the reconstruction's instructions).
   for (std::uint32_t v : loose) {
-    if (not_manifold_without(mesh, vt, crossed, v)) {
+    if (splits_fan(mesh, vt, crossed, v)) {
       ++st.split_fans;
       return false;
     }

@@ -1494,29 +1494,7 @@ void Builder::fill_small_loops() {
 
 std::size_t Builder::fans_of(std::uint32_t v, const std::uint32_t* ids, std::uint32_t m,
                              std::vector<int>& fan, std::vector<std::uint32_t>& size) const {
-  // union-find over the triangles of v: join triangles sharing an edge (v, w)
-  fan.assign(m, -1);
-  auto find = [&](int i) {
-    while (fan[static_cast<std::size_t>(i)] >= 0) i = fan[static_cast<std::size_t>(i)];
-    return i;
-  };
-  for (std::uint32_t i = 0; i < m; ++i)
-    for (std::uint32_t j = i + 1; j < m; ++j) {
-      const Triangle &ti = tris_[ids[i]], &tj = tris_[ids[j]];
-      int shared = 0;
-      for (std::uint32_t x : ti)
-        if (x != v && (x == tj[0] || x == tj[1] || x == tj[2])) ++shared;
-      if (shared == 0) continue;
-      const int ri = find(static_cast<int>(i)), rj = find(static_cast<int>(j));
-      if (ri != rj) fan[static_cast<std::size_t>(rj)] = ri;
-    }
-  size.assign(m, 0);
-  std::size_t roots = 0;
-  for (std::uint32_t i = 0; i < m; ++i) {
-    const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
-    if (size[r]++ == 0) ++roots;
-  }
-  return roots;
+  return detail::fans_of(tris_, v, ids, m, fan, size);
 }
 
 void Builder::check_bulk_fans() const {

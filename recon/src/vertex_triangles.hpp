@@ -1,5 +1,5 @@
-// Internal to recon: each vertex's triangles as compressed lists, shared by the front's repairs
-// and the gap untangling.
+// Internal to recon: each vertex's triangles as compressed lists and the fans they form, shared
+// by the front's repairs and the gap untangling.
 // SPDX-License-Identifier: MIT
 #pragma once
 
@@ -41,5 +41,35 @@ struct VertexTriangles {
     return {list.data() + start[v], list.data() + start[v + 1]};
   }
 };
+
+/// Number of fans that v's m triangles tris[ids[0..m)] form: triangles sharing a corner other
+/// than v (an edge at v) are joined (union-find in `fan`: a root's entry is negative; the size
+/// of each root's fan in `size`).
+inline std::size_t fans_of(const std::vector<Triangle>& tris, std::uint32_t v,
+                           const std::uint32_t* ids, std::uint32_t m, std::vector<int>& fan,
+                           std::vector<std::uint32_t>& size) {
+  fan.assign(m, -1);
+  auto find = [&](int i) {
+    while (fan[static_cast<std::size_t>(i)] >= 0) i = fan[static_cast<std::size_t>(i)];
+    return i;
+  };
+  for (std::uint32_t i = 0; i < m; ++i)
+    for (std::uint32_t j = i + 1; j < m; ++j) {
+      const Triangle &ti = tris[ids[i]], &tj = tris[ids[j]];
+      int shared = 0;
+      for (std::uint32_t x : ti)
+        if (x != v && (x == tj[0] || x == tj[1] || x == tj[2])) ++shared;
+      if (shared == 0) continue;
+      const int ri = find(static_cast<int>(i)), rj = find(static_cast<int>(j));
+      if (ri != rj) fan[static_cast<std::size_t>(rj)] = ri;
+    }
+  size.assign(m, 0);
+  std::size_t roots = 0;
+  for (std::uint32_t i = 0; i < m; ++i) {
+    const auto r = static_cast<std::size_t>(find(static_cast<int>(i)));
+    if (size[r]++ == 0) ++roots;
+  }
+  return roots;
+}
 
 }  // namespace scanmesh::recon::detail

@@ -63,7 +63,7 @@ struct UntangleStats {
   std::size_t reinserted = 0;  ///< vertices the removal stranded, put back into a patch
   std::size_t skipped = 0;     ///< gaps not tried: beyond kMaxUntangledGaps
   /// Gaps left as they are without a trial: removing the triangles their patch crosses would
-  /// leave a vertex with two fans (or an edge with three triangles), which no fill can mend.
+  /// leave a vertex with two fans, which no fill mends.
   std::size_t split_fans = 0;
 };
 
