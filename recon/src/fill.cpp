@@ -796,9 +796,13 @@ UntangleStats untangle_gaps(Mesh& mesh, const FillOptions& options,
     targets.resize(kMaxUntangledGaps);
   }
   if (targets.empty()) return st;
-  for (const Triangle& t : mesh.triangles)
-    for (std::uint32_t v : t)
-      if (v >= mesh.vertices.size()) (void)analyze(mesh);  // throws, naming the triangle
+  // The corner lists below index by vertex: a triangle naming a vertex beyond the mesh is the
+  // error analyze() reports (it throws, naming the triangle).
+  const auto n = mesh.vertices.size();
+  if (std::any_of(mesh.triangles.begin(), mesh.triangles.end(), [n](const Triangle& t) {
+        return t[0] >= n || t[1] >= n || t[2] >= n;
+      }))
+    (void)analyze(mesh);
   std::vector<std::uint32_t> list;
   std::optional<MeshReport> report;  // of the mesh as it is now, once needed
   std::optional<detail::VertexTriangles> vt;
