@@ -269,7 +269,7 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   std::vector<Vec3> reduced;
   if (options.project && res.cube_mm > 0) {
     reduced = project_to_local_planes(points, kept, options.project_radius_factor * res.cube_mm,
-                                      0.5 * res.cube_mm);
+                                      0.5 * res.cube_mm, options.project_second_order);
   } else {
     reduced.resize(kept.size());
     for (std::size_t i = 0; i < kept.size(); ++i) reduced[i] = points[kept[i]];

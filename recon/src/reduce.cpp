@@ -16,6 +16,7 @@
 #include "scanmesh/recon/normals.hpp"
 
 #include "block_points.hpp"
+#include "quadric_fit.hpp"
 
 namespace scanmesh::recon {
 namespace {
@@ -30,6 +31,14 @@ GeometryError too_many_cubes(double cube, double extent) {
 }
 
 constexpr std::uint32_t kNone = 0xffffffffu;
+/// Points a representative's ball needs for the second-order projection (a quadric has 6
+/// coefficients; with fewer than 10 points the fit follows the noise).
+constexpr std::size_t kQuadricPoints = 10;
+/// How much more than noise the quadric's curvature terms must explain (F statistic, 3 and
+/// n - 6 degrees of freedom: 10 is far beyond chance at any n).
+constexpr double kQuadricF = 30.0;
+/// The smallest radius of curvature, in balls, the quadric may have.
+constexpr double kQuadricMinRadius = 2.0;
 
 /// Open-addressing table from cube key to the index of the input point nearest the cube centre
 /// and its squared distance to the centre (24-byte slots, load at most one half; grows while
@@ -356,7 +365,7 @@ std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
 
 std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
                                           std::span<const std::uint32_t> representatives,
-                                          double radius, double max_move) {
+                                          double radius, double max_move, bool second_order) {
   std::vector<Vec3> out(representatives.size());
   if (representatives.empty()) return out;
   if (input.size() >= kNone) throw GeometryError("too many points (at most 2^32 - 1)");
@@ -423,9 +432,56 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
           outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
           const Eigen::Matrix3d cov = outer / nd - mean * mean.transpose();
           const Vec3 normal = detail::plane_normal(cov).normal;
-          double move = -mean.dot(normal);  // signed distance from p to the plane, along -normal
-          move = std::clamp(move, -max_move, max_move);
-          out[rep] = p - move * normal;
+          // Height of the surface over p along the normal: the plane's, or the quadric's.
+          double height = mean.dot(normal);
+          if (second_order && n >= kQuadricPoints) {
+            // The plane through the ball's centroid lies inside a curved surface by about
+            // radius^2 / (4 R) (the mean height of a cap of radius R over the ball's disk); the
+            // quadric height field over that plane, centred on p, takes its value at p. It is
+            // used only where the curvature is real: its three terms must explain clearly more
+            // than noise (an F test of the residuals against the plane's), since on a flat or
+            // finely sampled patch the quadric's value follows the noise more than the plane's
+            // mean does.
+            const Vec3 e1 = normal.unitOrthogonal(), e2 = normal.cross(e1);
+            const double s = 1.0 / radius;
+            Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+            Eigen::Matrix<double, 6, 1> ath = Eigen::Matrix<double, 6, 1>::Zero(), coef;
+            auto row_of = [&](std::uint32_t u, Eigen::Matrix<double, 6, 1>& row) {
+              const Vec3 d(cx[u] - px, cy[u] - py, cz[u] - pz);
+              detail::quadric_row(d.dot(e1) * s, d.dot(e2) * s, row.data());
+              return d.dot(normal);
+            };
+            for (std::size_t q = 0; q < n; ++q) {
+              Eigen::Matrix<double, 6, 1> row;
+              const double h = row_of(inside[q], row);
+              ata.selfadjointView<Eigen::Lower>().rankUpdate(row);
+              ath += h * row;
+            }
+            ata.triangularView<Eigen::StrictlyUpper>() = ata.transpose();
+            // Principal curvatures of the fit (scaled coordinates): its Hessian's eigenvalues.
+            auto max_curvature = [&] {
+              const double a = 2 * coef[0], d = 2 * coef[2], b = coef[1];
+              return std::abs(0.5 * (a + d)) + std::sqrt(0.25 * (a - d) * (a - d) + b * b);
+            };
+            // A radius of curvature under kQuadricMinRadius balls is no smooth surface the
+            // sampling resolves: a crease (a quadric over a 30-degree fold bends about that
+            // much), two layers, a wall's edge. The plane stays there.
+            if (detail::solve_quadric(ata, ath, coef) &&
+                max_curvature() * kQuadricMinRadius <= radius) {
+              double rss_plane = 0, rss_quadric = 0;
+              for (std::size_t q = 0; q < n; ++q) {
+                Eigen::Matrix<double, 6, 1> row;
+                const double h = row_of(inside[q], row);
+                rss_plane += (h - height) * (h - height);
+                rss_quadric += (h - row.dot(coef)) * (h - row.dot(coef));
+              }
+              // F = ((rss_plane - rss_quadric) / 3) / (rss_quadric / (n - 6)) > kQuadricF
+              if ((rss_plane - rss_quadric) * static_cast<double>(n - 6) >
+                  3.0 * kQuadricF * rss_quadric)
+                height = coef[5];
+            }
+          }
+          out[rep] = p + std::clamp(height, -max_move, max_move) * normal;
         }
       });
   if (repeated) {

@@ -11,6 +11,7 @@
 #include "scanmesh/recon/reduce.hpp"
 
 #include "neighbour_order.hpp"
+#include "quadric_fit.hpp"
 
 namespace scanmesh::recon {
 namespace {
@@ -64,13 +65,7 @@ Residual quadric_residual(const Vec3* d, std::size_t k, double extent) {
   using Row = Eigen::Matrix<double, 6, 1>;
   auto row_of = [&](const Vec3& dm, double* row) {
     const Vec3 e = dm - mean;
-    const double u = e.dot(e1) * s, v = e.dot(e2) * s;
-    row[0] = u * u;
-    row[1] = u * v;
-    row[2] = v * v;
-    row[3] = u;
-    row[4] = v;
-    row[5] = 1.0;
+    detail::quadric_row(e.dot(e1) * s, e.dot(e2) * s, row);
     return e.dot(normal);
   };
   // Design matrix with zero rows beyond k (they change neither A^T A nor A^T h).
@@ -88,35 +83,8 @@ Residual quadric_residual(const Vec3* d, std::size_t k, double extent) {
   const Row ath = a.transpose().lazyProduct(h);
   // Cholesky factorisation of the (scaled, well conditioned) normal equations; the pivoting
   // QR of the design matrix when they are (nearly) singular: points on a conic.
-  double l[6][6] = {};
-  double max_diag = 0, min_pivot = std::numeric_limits<double>::infinity();
-  for (int c = 0; c < 6; ++c) max_diag = std::max(max_diag, ata(c, c));
-  for (int c = 0; c < 6; ++c) {
-    double dsum = ata(c, c);
-    for (int q = 0; q < c; ++q) dsum -= l[c][q] * l[c][q];
-    min_pivot = std::min(min_pivot, dsum);
-    if (!(dsum > 1e-10 * max_diag)) break;
-    l[c][c] = std::sqrt(dsum);
-    for (int r = c + 1; r < 6; ++r) {
-      double v = ata(r, c);
-      for (int q = 0; q < c; ++q) v -= l[r][q] * l[c][q];
-      l[r][c] = v / l[c][c];
-    }
-  }
   Row coef;
-  if (min_pivot > 1e-10 * max_diag) {
-    double y[6];
-    for (int r = 0; r < 6; ++r) {
-      double v = ath[r];
-      for (int q = 0; q < r; ++q) v -= l[r][q] * y[q];
-      y[r] = v / l[r][r];
-    }
-    for (int r = 5; r >= 0; --r) {
-      double v = y[r];
-      for (int q = r + 1; q < 6; ++q) v -= l[q][r] * coef[q];
-      coef[r] = v / l[r][r];
-    }
-  } else {
+  if (!detail::solve_quadric(ata, ath, coef)) {
     const auto kk = static_cast<Eigen::Index>(k);
     coef = a.topRows(kk).colPivHouseholderQr().solve(h.head(kk));
   }

@@ -280,6 +280,116 @@ TEST_CASE("cube_reduce_thin is cube_reduce thinned at 0.65 cube in cube-centre o
   }
 }
 
+// --- projection ----------------------------------------------------------------------------------
+
+namespace {
+
+/// A point sensor's serpentine raster over the cap of a sphere of radius r at the origin (lines
+/// along y, `line` apart, `step` along them; |x|, |y| up to 0.75 r), with Gaussian range noise.
+std::vector<Vec3> sphere_raster(double r, double line, double step, double noise) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> gauss(0.0, noise);
+  std::vector<Vec3> pts;
+  for (double x = -0.75 * r; x <= 0.75 * r; x += line)
+    for (double y = -0.75 * r; y <= 0.75 * r; y += step) {
+      const double z2 = r * r - x * x - y * y;
+      if (z2 > 0) pts.emplace_back(x, y, std::sqrt(z2) + gauss(rng));
+    }
+  return pts;
+}
+
+}  // namespace
+
+TEST_CASE("project_to_local_planes: the quadric stays on a sparsely scanned sphere, the plane sinks",
+          "[recon]") {
+  // bench_quality's point-sensor scans of the sphere (lines 2.5 mm apart, 0.5 mm along them,
+  // auto cube about 1.9 mm): the plane through a ball of 1.5 cubes lies about radius^2 / (4 R)
+  // = 0.1 mm inside the sphere, five times the noise.
+  const double r = 20, cube = 1.9, radius = 1.5 * cube;
+  const auto pts = sphere_raster(r, 2.5, 0.5, 0.02);
+  const auto kept = recon::cube_reduce_thin(pts, cube);
+  REQUIRE(kept.size() > 100);
+  auto signed_mean = [&](const std::vector<Vec3>& out, double& rms) {
+    double sum = 0, sum2 = 0;
+    std::size_t m = 0;
+    for (const Vec3& q : out) {
+      if (std::hypot(q.x(), q.y()) > 0.6 * r) continue;  // away from the cap's rim
+      const double d = q.norm() - r;
+      sum += d;
+      sum2 += d * d;
+      ++m;
+    }
+    REQUIRE(m > 50);
+    rms = std::sqrt(sum2 / static_cast<double>(m));
+    return sum / static_cast<double>(m);
+  };
+  double rms_plane = 0, rms_quadric = 0;
+  const double plane = signed_mean(recon::project_to_local_planes(pts, kept, radius, 0.5 * cube,
+                                                                  /*second_order=*/false),
+                                   rms_plane);
+  const double quadric = signed_mean(
+      recon::project_to_local_planes(pts, kept, radius, 0.5 * cube, /*second_order=*/true),
+      rms_quadric);
+  INFO("plane " << plane << " rms " << rms_plane << ", quadric " << quadric << " rms " << rms_quadric);
+  CHECK(plane < -0.08);
+  CHECK(std::abs(quadric) < 0.02);
+  // Where the sphere falls steeply, a ball holds a single scan line: no quadric, the plane.
+  CHECK(rms_quadric < 0.35 * rms_plane);
+}
+
+TEST_CASE("project_to_local_planes: on a noisy plane the quadric is not used", "[recon]") {
+  // Curvature the noise alone suggests fails the F test: both orders give the same points.
+  std::mt19937 rng(3);
+  std::normal_distribution<double> gauss(0.0, 0.05);
+  std::vector<Vec3> pts;
+  for (int j = 0; j < 60; ++j)
+    for (int i = 0; i < 60; ++i) pts.emplace_back(0.2 * i, 0.2 * j, gauss(rng));
+  const double cube = 0.4;
+  const auto kept = recon::cube_reduce_thin(pts, cube);
+  const auto first = recon::project_to_local_planes(pts, kept, 1.5 * cube, 0.5 * cube, false);
+  const auto second = recon::project_to_local_planes(pts, kept, 1.5 * cube, 0.5 * cube, true);
+  REQUIRE(first.size() == second.size());
+  std::size_t same = 0;
+  for (std::size_t i = 0; i < first.size(); ++i) same += first[i] == second[i] ? 1 : 0;
+  CHECK(same >= first.size() - first.size() / 200);  // at most 0.5 % by chance
+}
+
+TEST_CASE("project_to_local_planes: the quadric only where the bend is gentle against the ball",
+          "[recon]") {
+  // A noise-free cylinder along y scanned in lines 0.5 apart (0.1 along them): its quadric fits
+  // almost exactly (the F test passes everywhere), so only the radius of curvature decides.
+  // Tighter than two balls (a fillet, a crease the sampling barely resolves) the plane stays;
+  // gentler, the quadric puts the point back on the surface, which the plane misses inwards.
+  const double cube = 0.6, radius = 1.5 * cube;
+  for (const double bend : {1.5, 4.0}) {  // cylinder radius, in balls
+    const double rc = bend * radius;
+    std::vector<Vec3> pts;
+    for (double a = -1.2; a <= 1.2; a += 0.5 / rc)
+      for (double y = 0; y <= 12; y += 0.1) pts.emplace_back(rc * std::sin(a), y, rc * std::cos(a));
+    const auto kept = recon::cube_reduce_thin(pts, cube);
+    const auto first = recon::project_to_local_planes(pts, kept, radius, 0.5 * cube, false);
+    const auto second = recon::project_to_local_planes(pts, kept, radius, 0.5 * cube, true);
+    REQUIRE(first.size() == second.size());
+    std::size_t inner = 0, same = 0;
+    double off_first = 0, off_second = 0;
+    for (std::size_t i = 0; i < first.size(); ++i) {
+      if (std::abs(first[i].x()) > 0.6 * rc || first[i].y() < 2 || first[i].y() > 10) continue;
+      ++inner;
+      same += first[i] == second[i] ? 1 : 0;
+      off_first += std::abs(std::hypot(first[i].x(), first[i].z()) - rc);
+      off_second += std::abs(std::hypot(second[i].x(), second[i].z()) - rc);
+    }
+    INFO("bend " << bend << " balls: " << same << " of " << inner << " unchanged");
+    REQUIRE(inner > 20);
+    if (bend < 2) {
+      CHECK(same == inner);
+    } else {
+      CHECK(same == 0);
+      CHECK(off_second < 0.2 * off_first);
+    }
+  }
+}
+
 // --- spacing -------------------------------------------------------------------------------------
 
 TEST_CASE("estimate_spacing on a regular grid: nearest and cross are the step", "[recon]") {

@@ -29,6 +29,9 @@ struct ReconstructOptions {
   /// shells into one layer.
   bool project = true;
   double project_radius_factor = 1.5;
+  /// Onto the local least-squares quadric instead of the plane (second-order MLS) where the
+  /// ball holds enough points: the plane lies inside a curved surface by about radius^2 / (4 R).
+  bool project_second_order = true;
   FrontOptions front;
   NormalOptions normals;
   RefineOptions refine;

@@ -59,10 +59,14 @@ std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
 
 /// Moves each representative onto the least-squares plane of the input points within `radius`
 /// of it (first-order MLS projection), so a noisy multi-view shell becomes one thin layer.
+/// With `second_order`, onto the least-squares quadric height field over that plane instead,
+/// where at least 10 points determine one (second-order MLS: the plane through a curved
+/// surface's points lies about radius^2 / (4 R) inside it, which the quadric does not).
 /// A point moves at most `max_move`; points with fewer than 6 neighbours stay where they are.
 std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
                                           std::span<const std::uint32_t> representatives,
-                                          double radius, double max_move);
+                                          double radius, double max_move,
+                                          bool second_order = true);
 
 /// cube_reduce followed by thin_min_distance(0.65 * cube) in cube-centre order (squared distance
 /// to the own cube centre in cube units, ascending; index breaking ties). Only representatives
