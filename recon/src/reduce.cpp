@@ -35,7 +35,8 @@ constexpr std::uint32_t kNone = 0xffffffffu;
 /// coefficients; with fewer than 10 points the fit follows the noise).
 constexpr std::size_t kQuadricPoints = 10;
 /// How much more than noise the quadric's curvature terms must explain (F statistic, 3 and
-/// n - 6 degrees of freedom: 10 is far beyond chance at any n).
+/// n - 6 degrees of freedom): 10 would already be far beyond chance; 30 asks that curvature
+/// clearly dominate (noisy merged views and CAD vertex sets reach 10-15; recon/README).
 constexpr double kQuadricF = 30.0;
 /// The smallest radius of curvature, in balls, the quadric may have.
 constexpr double kQuadricMinRadius = 2.0;
