@@ -356,16 +356,14 @@ TEST_CASE("project_to_local_planes: on a noisy plane the quadric is not used", "
 
 TEST_CASE("project_to_local_planes: the quadric only where the bend is gentle against the ball",
           "[recon]") {
-  // A noise-free cylinder along y scanned in lines 0.5 apart (0.1 along them): its quadric fits
-  // almost exactly (the F test passes everywhere), so only the radius of curvature decides.
+  // A noise-free cylinder scanned in rings 0.5 apart, 0.1 along them (cylinder_raster): its
+  // quadric fits almost exactly (the F test passes everywhere), so only the curvature decides.
   // Tighter than two balls (a fillet, a crease the sampling barely resolves) the plane stays;
   // gentler, the quadric puts the point back on the surface, which the plane misses inwards.
   const double cube = 0.6, radius = 1.5 * cube;
   for (const double bend : {1.5, 4.0}) {  // cylinder radius, in balls
     const double rc = bend * radius;
-    std::vector<Vec3> pts;
-    for (double a = -1.2; a <= 1.2; a += 0.5 / rc)
-      for (double y = 0; y <= 12; y += 0.1) pts.emplace_back(rc * std::sin(a), y, rc * std::cos(a));
+    const auto pts = scanmesh::test::cylinder_raster(rc, 12, 0.1, 0.5);
     const auto kept = recon::cube_reduce_thin(pts, cube);
     const auto first = recon::project_to_local_planes(pts, kept, radius, 0.5 * cube, false);
     const auto second = recon::project_to_local_planes(pts, kept, radius, 0.5 * cube, true);
@@ -373,11 +371,11 @@ TEST_CASE("project_to_local_planes: the quadric only where the bend is gentle ag
     std::size_t inner = 0, same = 0;
     double off_first = 0, off_second = 0;
     for (std::size_t i = 0; i < first.size(); ++i) {
-      if (std::abs(first[i].x()) > 0.6 * rc || first[i].y() < 2 || first[i].y() > 10) continue;
+      if (first[i].z() < 2 || first[i].z() > 10) continue;  // away from the open ends
       ++inner;
       same += first[i] == second[i] ? 1 : 0;
-      off_first += std::abs(std::hypot(first[i].x(), first[i].z()) - rc);
-      off_second += std::abs(std::hypot(second[i].x(), second[i].z()) - rc);
+      off_first += std::abs(std::hypot(first[i].x(), first[i].y()) - rc);
+      off_second += std::abs(std::hypot(second[i].x(), second[i].y()) - rc);
     }
     INFO("bend " << bend << " balls: " << same << " of " << inner << " unchanged");
     REQUIRE(inner > 20);
