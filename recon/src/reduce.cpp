@@ -473,8 +473,9 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
               for (std::size_t q = 0; q < n; ++q) {
                 Eigen::Matrix<double, 6, 1> row;
                 const double h = row_of(inside[q], row);
-                rss_plane += (h - height) * (h - height);
-                rss_quadric += (h - row.dot(coef)) * (h - row.dot(coef));
+                const double off_plane = h - height, off_quadric = h - row.dot(coef);
+                rss_plane += off_plane * off_plane;
+                rss_quadric += off_quadric * off_quadric;
               }
               // F = ((rss_plane - rss_quadric) / 3) / (rss_quadric / (n - 6)) > kQuadricF
               if ((rss_plane - rss_quadric) * static_cast<double>(n - 6) >
