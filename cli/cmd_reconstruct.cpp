@@ -271,6 +271,10 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["bulk_triangles"] = res.bulk_triangles;
     j["dropped_components"] = res.dropped_components;
     j["dropped_specks"] = res.dropped_specks;
+    // Representatives whose projection cut across a sharp edge, a corner or a step, and of
+    // those the vertices the mesh has at the measured point.
+    j["feature_points"] = res.features;
+    j["feature_points_measured"] = res.restored;
     j["output"] = args.output;
     j["notes"] = notes;
     if (!args.preview.empty()) j["preview"] = args.preview;

@@ -63,6 +63,20 @@ class BoxBins {
         }
   }
 
+  /// Calls f(key) for every key whose box may hold point p (visit(p, p, f), one cell).
+  template <class F>
+  void visit_point(const Vec3& p, F&& f) const {
+    if (all_.size() <= kFew) {
+      for (std::uint32_t k : all_) f(k);
+      return;
+    }
+    for (std::uint32_t k : wide_) f(k);
+    if (keys_.empty()) return;
+    const std::uint32_t s = find(pack(coord(p.x()), coord(p.y()), coord(p.z())));
+    if (s == kNone) return;
+    for (std::uint32_t n = heads_[s]; n != kNone; n = nodes_[n].next) f(nodes_[n].key);
+  }
+
   /// Calls f(key) for every key whose box may overlap [lo, hi] (see the class comment).
   template <class F>
   void visit(const Vec3& lo, const Vec3& hi, F&& f) const {

@@ -6,11 +6,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <utility>
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/grid.hpp"
 #include "scanmesh/recon/normals.hpp"
 #include "loop_measure.hpp"
+#include "restore.hpp"
 
 namespace scanmesh::recon {
 namespace detail {
@@ -183,6 +186,8 @@ std::vector<std::string> ReconstructOptions::validate() const {
     errors.push_back("slit zipping band must be in [0, 2] spacings");
   if (normals.neighbours < 6 || normals.neighbours > 64)
     errors.push_back("normal neighbourhood must be in [6, 64]");
+  if (!(project_flat_factor >= 0 && project_flat_factor <= 1000))
+    errors.push_back("projection flatness factor must be in [0, 1000] (0: off)");
   return errors;
 }
 
@@ -267,9 +272,21 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     kept = cube_reduce_thin(points, res.cube_mm);
   }
   std::vector<Vec3> reduced;
+  // Representatives whose projection cut across a feature (a sharp edge, a corner, a step):
+  // the front meshes their projected positions, the output has their measured ones where the
+  // mesh stays valid (restore_positions): their positions in `reduced`, with the measured point.
+  std::vector<std::pair<std::uint32_t, Vec3>> measured;
   if (options.project && res.cube_mm > 0) {
+    const double max_plane_rms = options.project_flat_factor > 0
+                                     ? options.project_flat_factor * res.spacing.thickness_mm
+                                     : std::numeric_limits<double>::infinity();
+    std::vector<std::uint32_t> features;
     reduced = project_to_local_planes(points, kept, options.project_radius_factor * res.cube_mm,
-                                      0.5 * res.cube_mm, options.project_second_order);
+                                      0.5 * res.cube_mm, options.project_second_order,
+                                      max_plane_rms,
+                                      options.project_flat_factor > 0 ? &features : nullptr);
+    measured.reserve(features.size());
+    for (std::uint32_t f : features) measured.emplace_back(f, points[kept[f]]);
   } else {
     reduced.resize(kept.size());
     for (std::size_t i = 0; i < kept.size(); ++i) reduced[i] = points[kept[i]];
@@ -299,6 +316,13 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
       const auto& order = grid.order();
       for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = reduced[order[i]];
       reduced.swap(sorted);
+      if (!measured.empty()) {
+        std::vector<std::uint32_t> at(order.size());  // old position -> new
+        for (std::size_t i = 0; i < order.size(); ++i) at[order[i]] = static_cast<std::uint32_t>(i);
+        for (auto& m : measured) m.first = at[m.first];
+        std::sort(measured.begin(), measured.end(),
+                  [](const auto& a, const auto& b) { return a.first < b.first; });
+      }
       if (!views.empty()) {
         for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = views[order[i]];
         views.swap(sorted);
@@ -352,7 +376,12 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   for (Triangle& t : res.mesh.triangles)
     for (std::uint32_t& v : t) v = remap[v];
   res.outliers.reserve(fr.outliers.size());
-  for (std::uint32_t v : fr.outliers) res.outliers.push_back(reduced[v]);
+  for (std::uint32_t v : fr.outliers) {
+    // A feature's outlier as measured (its projection cut across the feature).
+    const auto m = std::lower_bound(measured.begin(), measured.end(), v,
+                                    [](const auto& a, std::uint32_t key) { return a.first < key; });
+    res.outliers.push_back(m != measured.end() && m->first == v ? m->second : reduced[v]);
+  }
   res.outliers.insert(res.outliers.end(), far.begin(), far.end());
   std::vector<Vec3>().swap(far);
   res.seeds = fr.seeds;
@@ -390,6 +419,16 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
       if (options.untangle_gaps && res.gaps.crossing > 0)
         res.untangle = untangle_gaps(res.mesh, gap_fill, vertex_spacing, res.gaps);
     }
+  }
+  if (!measured.empty()) {
+    // The features' vertices back where they were measured (the front meshed their projections).
+    std::vector<std::pair<std::uint32_t, Vec3>> targets;
+    for (const auto& [v, p] : measured)
+      if (remap[v] != 0xffffffffu) targets.emplace_back(remap[v], p);
+    std::sort(targets.begin(), targets.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    res.features = measured.size();
+    res.restored = detail::restore_positions(res.mesh, targets);
   }
   if (options.fill.max_edges > 0) {
     stage("fill");

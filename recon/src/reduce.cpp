@@ -366,8 +366,11 @@ std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
 
 std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
                                           std::span<const std::uint32_t> representatives,
-                                          double radius, double max_move, bool second_order) {
+                                          double radius, double max_move, bool second_order,
+                                          double max_plane_rms,
+                                          std::vector<std::uint32_t>* features) {
   std::vector<Vec3> out(representatives.size());
+  if (features) features->clear();
   if (representatives.empty()) return out;
   if (input.size() >= kNone) throw GeometryError("too many points (at most 2^32 - 1)");
   // Cells of one radius: the 27 cells around a representative's cell hold its ball. The
@@ -377,6 +380,7 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
   grid.build(input, radius);
   const auto& order = grid.order();
   const double r2 = radius * radius;
+  const double max_plane_ms = max_plane_rms * max_plane_rms;
   // Position of each input point in `representatives` (the first, if listed twice).
   std::vector<std::uint32_t> rep_of(input.size(), kNone);
   bool repeated = false;
@@ -432,9 +436,11 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
           Eigen::Matrix3d outer;
           outer << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
           const Eigen::Matrix3d cov = outer / nd - mean * mean.transpose();
-          const Vec3 normal = detail::plane_normal(cov).normal;
+          const detail::PlaneFit fit = detail::plane_normal(cov);
+          const Vec3& normal = fit.normal;
           // Height of the surface over p along the normal: the plane's, or the quadric's.
           double height = mean.dot(normal);
+          bool curved = false;  // the quadric explains the ball
           if (second_order && n >= kQuadricPoints) {
             // The plane through the ball's centroid lies inside a curved surface by about
             // radius^2 / (4 R) (the mean height of a cap of radius R over the ball's disk); the
@@ -480,15 +486,32 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
               // F = ((rss_plane - rss_quadric) / 3) / (rss_quadric / (n - 6)) > kQuadricF
               if ((rss_plane - rss_quadric) * static_cast<double>(n - 6) >
                   3.0 * kQuadricF * rss_quadric)
-                height = coef[5];
+                height = coef[5], curved = true;
             }
           }
+          // A ball whose points lie farther from their plane than the scan's noise allows, and
+          // that no quadric explains, straddles a feature: the plane cuts across a sharp edge,
+          // a corner or a step (up to max_move inside it), where the measured point is on it.
+          if (features && !curved && fit.eigenvalues[0] > max_plane_ms) features->push_back(rep);
           out[rep] = p + std::clamp(height, -max_move, max_move) * normal;
         }
       });
   if (repeated) {
     for (std::size_t i = 0; i < representatives.size(); ++i)
       out[i] = out[rep_of[representatives[i]]];
+  }
+  if (features) {
+    // Found cell by cell; a representative listed twice is a feature at each of its positions.
+    std::vector<std::uint32_t>& f = *features;
+    if (repeated) {
+      std::vector<std::uint8_t> flag(representatives.size(), 0);
+      for (std::uint32_t i : f) flag[i] = 1;
+      f.clear();
+      for (std::size_t i = 0; i < representatives.size(); ++i)
+        if (flag[rep_of[representatives[i]]]) f.push_back(static_cast<std::uint32_t>(i));
+    } else {
+      std::sort(f.begin(), f.end());
+    }
   }
   return out;
 }

@@ -175,6 +175,8 @@ TEST_CASE("reconstruct a generated sphere: JSON figures and a closed mesh", "[cl
   CHECK(j["boundary_loops"] == 0);
   CHECK(j["components"] == 1);
   CHECK(j["seconds_total"].is_number());
+  REQUIRE(j.contains("feature_points"));
+  CHECK(j["feature_points_measured"].get<std::size_t>() <= j["feature_points"].get<std::size_t>());
   REQUIRE(j["seconds"].is_object());
   CHECK(!j["seconds"].empty());
   for (const char* stage : {"read", "reduce", "normals", "front", "write"}) {

@@ -42,6 +42,8 @@ struct Case {
   std::optional<long> max_genus = std::nullopt;  // upper bound, where the exact genus is not reached yet
   /// Upper bound on the boundary loops, where the exact count is not reached yet.
   std::optional<std::size_t> max_loops = std::nullopt;
+  /// Mesh -> reference mean and 95th percentile, in spacings, at most.
+  double max_mean = 0.2, max_p95 = 0.5;
 };
 
 /// Longest edge of each triangle over the spacing around its vertices (distance to the 6th
@@ -176,8 +178,8 @@ void run_case(const Case& c) {
   INFO("mesh->ref mean " << dev.mesh_to_ref.mean / spacing << " p95 "
                          << dev.mesh_to_ref.p95 / spacing << " max " << dev.mesh_to_ref.max / spacing
                          << " spacings; ref->mesh p95 " << dev.ref_to_mesh.p95 / spacing);
-  CHECK(dev.mesh_to_ref.mean < 0.2 * spacing);
-  CHECK(dev.mesh_to_ref.p95 < 0.5 * spacing);
+  CHECK(dev.mesh_to_ref.mean < c.max_mean * spacing);
+  CHECK(dev.mesh_to_ref.p95 < c.max_p95 * spacing);
   CHECK(dev.mesh_to_ref.max < 4.0 * spacing);
   if (c.covers_reference) CHECK(dev.ref_to_mesh.p95 < 0.5 * spacing);
 }
@@ -270,7 +272,13 @@ TEST_CASE("real scan: igea stays closed with another bulk patch cone (no false h
 }
 
 TEST_CASE("real scan: fandisk closes with its sharp edges", "[recon][real][slow]") {
-  run_case({"fandisk", {"fandisk/fandisk_vertices.xyz"}, "", "fandisk/fandisk.obj", 0, 0, 1, true});
+  // Its points are the part's CAD vertices, on its surface: the mesh keeps them at its sharp
+  // edges and corners, where the projection rounds the part off (mean 0.044 and p95 0.23
+  // spacings when the output kept the projections; now 0.003 and 0.0005).
+  Case c{"fandisk", {"fandisk/fandisk_vertices.xyz"}, "", "fandisk/fandisk.obj", 0, 0, 1, true};
+  c.max_mean = 0.01;
+  c.max_p95 = 0.01;
+  run_case(c);
 }
 
 // The casting's walls are 0.045-0.07 units thick (measured by ray casting the reference)

@@ -32,6 +32,13 @@ struct ReconstructOptions {
   /// Onto the local least-squares quadric instead of the plane (second-order MLS) where the
   /// ball holds enough points: the plane lies inside a curved surface by about radius^2 / (4 R).
   bool project_second_order = true;
+  /// A ball whose points lie farther from their plane (RMS) than project_flat_factor times the
+  /// scan's shell thickness (SpacingEstimate::thickness_mm, the noise), and that no quadric
+  /// explains, straddles a sharp edge, a corner or a step: its plane cuts across the feature,
+  /// up to half a cube inside the part. The front meshes the projected point (it follows a
+  /// rounded feature more surely), and the output has the measured one wherever the mesh stays
+  /// valid. 0: the projected point (as before stop 43).
+  double project_flat_factor = 8.0;
   FrontOptions front;
   NormalOptions normals;
   RefineOptions refine;
@@ -68,6 +75,11 @@ struct ReconstructResult {
   std::vector<Vec3> outliers;
   std::size_t far_points = 0;  ///< of which far points (the last ones in `outliers`)
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
+  /// Representatives whose projection cut across a feature (a sharp edge, a corner, a step:
+  /// ReconstructOptions::project_flat_factor), and how many of their vertices the mesh has at
+  /// the measured point instead (the rest keep the projection, where the measured point would
+  /// fold or cross a triangle).
+  std::size_t features = 0, restored = 0;
   RefineStats refine;  ///< points the front left out that were inserted afterwards
   ZipStats zip;        ///< slits zipped at the end (options.close_gaps, zip_band)
   FillStats gaps;      ///< sampling gaps closed at the end (options.close_gaps)

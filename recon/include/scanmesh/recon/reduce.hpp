@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -63,10 +64,15 @@ std::vector<std::uint32_t> thin_min_distance(std::span<const Vec3> points,
 /// where at least 10 points determine one (second-order MLS: the plane through a curved
 /// surface's points lies about radius^2 / (4 R) inside it, which the quadric does not).
 /// A point moves at most `max_move`; points with fewer than 6 neighbours stay where they are.
-std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
-                                          std::span<const std::uint32_t> representatives,
-                                          double radius, double max_move,
-                                          bool second_order = true);
+/// `features`, when given, receives the positions in `representatives` (ascending) whose ball
+/// is not flat: its points' RMS distance from their plane is above `max_plane_rms` and no
+/// quadric explains them. Such a ball straddles a sharp edge, a corner or a step, and its plane
+/// cuts across the feature: the point moves off the surface there (recon/README, Pipeline).
+std::vector<Vec3> project_to_local_planes(
+    std::span<const Vec3> input, std::span<const std::uint32_t> representatives, double radius,
+    double max_move, bool second_order = true,
+    double max_plane_rms = std::numeric_limits<double>::infinity(),
+    std::vector<std::uint32_t>* features = nullptr);
 
 /// cube_reduce followed by thin_min_distance(0.65 * cube) in cube-centre order (squared distance
 /// to the own cube centre in cube units, ascending; index breaking ties). Only representatives
