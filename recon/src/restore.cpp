@@ -22,8 +22,7 @@ inline void box_of(const Mesh& m, const Triangle& t, Vec3& lo, Vec3& hi) {
 
 }  // namespace
 
-std::size_t restore_positions(Mesh& mesh,
-                              std::span<const std::pair<std::uint32_t, Vec3>> targets) {
+std::size_t restore_positions(Mesh& mesh, std::span<const std::pair<std::uint32_t, Vec3>> targets) {
   if (targets.empty() || mesh.triangles.empty()) return 0;
   constexpr std::uint32_t kOut = 0xffffffffu;
   // The movers' triangles (one pass), and the box each mover's triangles sweep.
@@ -60,19 +59,18 @@ std::size_t restore_positions(Mesh& mesh,
   // no wider than `reach` that meets one has all its corners within `reach` of it, so the
   // swept boxes are binned widened by that, and only the corners look them up; a wider
   // triangle looks up its whole box (BoxBins keeps boxes over 64 cells apart).
-  std::vector<std::pair<Vec3, Vec3>> widened(swept.size());
+  const Vec3 margin = Vec3::Constant(reach);
   BoxBins near;
   near.reset(reach);
-  for (std::uint32_t k = 0; k < targets.size(); ++k) {
-    widened[k] = {swept[k].first - Vec3::Constant(reach), swept[k].second + Vec3::Constant(reach)};
-    near.insert(k, widened[k].first, widened[k].second);
-  }
+  for (std::uint32_t k = 0; k < targets.size(); ++k)
+    near.insert(k, swept[k].first - margin, swept[k].second + margin);
   std::vector<std::uint8_t> close(mesh.vertices.size(), 0);
   for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
     const Vec3& p = mesh.vertices[v];
     near.visit_point(p, [&](std::uint32_t k) {
-      close[v] |= static_cast<std::uint8_t>((widened[k].first.array() <= p.array()).all() &&
-                                            (p.array() <= widened[k].second.array()).all());
+      close[v] |=
+          static_cast<std::uint8_t>(((swept[k].first - margin).array() <= p.array()).all() &&
+                                    (p.array() <= (swept[k].second + margin).array()).all());
     });
   }
   BoxBins bins;  // those triangles, by their current box
@@ -93,12 +91,13 @@ std::size_t restore_positions(Mesh& mesh,
     if (meets) bins.insert(t, lo, hi);
   }
   std::vector<std::uint8_t>().swap(close);
-  const double max_tilt_cos = 0.5;                                   // 60 degrees
+  const double max_tilt_cos = 0.5;                                      // 60 degrees
   const double min_angle_cos = std::cos(1.0 * std::numbers::pi / 180);  // 1 degree
   std::vector<std::uint32_t> stamp(mesh.triangles.size(), 0);
   std::uint32_t round = 0;
   std::size_t moved = 0;
   std::vector<Vec3> before;  // the normals of the mover's triangles before the move
+  std::vector<std::pair<Vec3, Vec3>> fan_box;  // their boxes after it
   struct Near {
     Vec3 lo, hi;
     std::uint32_t id;
@@ -128,9 +127,11 @@ std::size_t restore_positions(Mesh& mesh,
     // ignores what two triangles share). The triangles near the fan are gathered once.
     if (ok) {
       Vec3 flo = target, fhi = target;
+      fan_box.clear();
       for (std::uint32_t t : fan) {
         Vec3 lo, hi;
         box_of(mesh, mesh.triangles[t], lo, hi);
+        fan_box.emplace_back(lo, hi);
         flo = flo.cwiseMin(lo);
         fhi = fhi.cwiseMax(hi);
       }
@@ -148,16 +149,18 @@ std::size_t restore_positions(Mesh& mesh,
     for (std::size_t i = 0; i < fan.size() && ok; ++i) {
       const std::uint32_t t = fan[i];
       const Triangle& tt = mesh.triangles[t];
-      Vec3 lo, hi;
-      box_of(mesh, tt, lo, hi);
+      const auto& [lo, hi] = fan_box[i];
       // t's plane: a triangle whose corners off t lie strictly on one side of it meets t at
-      // most where they share corners, which is no crossing (as triangles_intersect counts).
+      // most where they share corners, which is no crossing. "Strictly" at least as far as
+      // triangles_intersect's tolerance (1e-9 of the pair's longest edge, which is at most
+      // sqrt(3) times the larger box extent), so that nothing it would count is skipped.
       const Vec3& a = mesh.vertices[tt[0]];
       const Vec3 n = (mesh.vertices[tt[1]] - a).cross(mesh.vertices[tt[2]] - a).normalized();
-      const double tol = 1e-9 * (hi - lo).maxCoeff();
+      const double extent = (hi - lo).maxCoeff();
       for (const Near& q : nearby) {
         if (q.id == t) continue;
         if ((q.lo.array() > hi.array()).any() || (q.hi.array() < lo.array()).any()) continue;
+        const double tol = 1.8e-9 * std::max(extent, (q.hi - q.lo).maxCoeff());
         const Triangle& tu = mesh.triangles[q.id];
         int above = 0, below = 0, off = 0;
         for (std::uint32_t w : tu) {
@@ -178,11 +181,8 @@ std::size_t restore_positions(Mesh& mesh,
       mesh.vertices[v] = old;
       continue;
     }
-    for (std::uint32_t t : fan) {
-      Vec3 lo, hi;
-      box_of(mesh, mesh.triangles[t], lo, hi);
-      bins.insert(t, lo, hi);
-    }
+    for (std::size_t i = 0; i < fan.size(); ++i)
+      bins.insert(fan[i], fan_box[i].first, fan_box[i].second);
     ++moved;
   }
   return moved;

@@ -17,7 +17,6 @@ namespace scanmesh::recon::detail {
 /// Returns how many moved. Used for the representatives whose projection cut across a sharp
 /// edge, a corner or a step (reconstruct.cpp): the front meshes the projected points, whose
 /// rounded features it follows more surely, and the mesh keeps the measured ones.
-std::size_t restore_positions(Mesh& mesh,
-                              std::span<const std::pair<std::uint32_t, Vec3>> targets);
+std::size_t restore_positions(Mesh& mesh, std::span<const std::pair<std::uint32_t, Vec3>> targets);
 
 }  // namespace scanmesh::recon::detail

@@ -54,14 +54,17 @@ TEST_CASE("project_to_local_planes: the balls across a sharp edge are features",
   const auto pts = edge_points(0.1, noise);
   const auto kept = recon::cube_reduce_thin(pts, cube);
   std::vector<std::uint32_t> features;
-  const auto out = recon::project_to_local_planes(pts, kept, radius, 0.5 * cube, true,
-                                                  8 * noise, &features);
+  const auto out =
+      recon::project_to_local_planes(pts, kept, radius, 0.5 * cube, true, 8 * noise, &features);
   REQUIRE(std::is_sorted(features.begin(), features.end()));
   std::vector<std::uint8_t> is_feature(kept.size(), 0);
   for (std::uint32_t f : features) is_feature[f] = 1;
-  auto to_edge = [](const Vec3& p) { return std::hypot(std::min(p.x(), 0.0), std::min(p.z(), 0.0)); };
+  auto to_edge = [](const Vec3& p) {
+    return std::hypot(std::min(p.x(), 0.0), std::min(p.z(), 0.0));
+  };
   auto to_faces = [](const Vec3& p) {
-    return std::min(std::hypot(std::max(p.x(), 0.0), p.z()), std::hypot(p.x(), std::max(p.z(), 0.0)));
+    return std::min(std::hypot(std::max(p.x(), 0.0), p.z()),
+                    std::hypot(p.x(), std::max(p.z(), 0.0)));
   };
   std::size_t near = 0, near_features = 0, far = 0, far_features = 0;
   double cut = 0;  // how far inside the projections of the features near the edge lie
@@ -158,8 +161,8 @@ TEST_CASE("reconstruct: a noisy box keeps its sharp edges and corners", "[recon]
   };
   double worst_a = 0, worst_b = 0;
   const double mean_a = at_edges(a.mesh, worst_a), mean_b = at_edges(b.mesh, worst_b);
-  INFO("at the edges: mean " << mean_a << " (rounded " << mean_b << "), farthest vertex "
-                             << worst_a << " (rounded " << worst_b << ")");
+  INFO("at the edges: mean " << mean_a << " (rounded " << mean_b << "), farthest vertex " << worst_a
+                             << " (rounded " << worst_b << ")");
   CHECK(mean_a < noise);
   CHECK(mean_b > 2 * mean_a);
   CHECK(worst_a < 6 * noise);
