@@ -275,6 +275,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     // those the vertices the mesh has at the measured point.
     j["feature_points"] = res.features;
     j["feature_points_measured"] = res.restored;
+    j["peeled_chords"] = res.peeled_chords;
     j["output"] = args.output;
     j["notes"] = notes;
     if (!args.preview.empty()) j["preview"] = args.preview;

@@ -13,6 +13,7 @@
 #include "scanmesh/recon/grid.hpp"
 #include "scanmesh/recon/normals.hpp"
 #include "loop_measure.hpp"
+#include "peel.hpp"
 #include "restore.hpp"
 
 namespace scanmesh::recon {
@@ -188,6 +189,8 @@ std::vector<std::string> ReconstructOptions::validate() const {
     errors.push_back("normal neighbourhood must be in [6, 64]");
   if (!(project_flat_factor >= 0 && project_flat_factor <= 1000))
     errors.push_back("projection flatness factor must be in [0, 1000] (0: off)");
+  if (!(peel_apex_deg == 0 || (peel_apex_deg >= 90 && peel_apex_deg < 180)))
+    errors.push_back("border chord apex angle must be in [90, 180) degrees (0: off)");
   return errors;
 }
 
@@ -430,6 +433,8 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     res.features = measured.size();
     res.restored = detail::restore_positions(res.mesh, targets);
   }
+  if (options.peel_apex_deg > 0)
+    res.peeled_chords = detail::peel_border_chords(res.mesh, options.peel_apex_deg);
   if (options.fill.max_edges > 0) {
     stage("fill");
     res.fill = fill_holes(res.mesh, options.fill);

@@ -39,6 +39,12 @@ struct ReconstructOptions {
   /// rounded feature more surely), and the output has the measured one wherever the mesh stays
   /// valid. 0: the projected point (as before stop 43).
   double project_flat_factor = 8.0;
+  /// A border triangle whose border edge lies opposite an angle over peel_apex_deg at a vertex
+  /// inside the mesh runs that edge as a chord past the measured point at the apex: it is
+  /// peeled off, until none is left, so the border passes through the samples (where a curved
+  /// scan line ends the surface, the chords are fans in the line's plane, inside the part).
+  /// Loops, components, genus and used points do not change. 0: off (as before stop 44).
+  double peel_apex_deg = 120.0;
   FrontOptions front;
   NormalOptions normals;
   RefineOptions refine;
@@ -80,6 +86,8 @@ struct ReconstructResult {
   /// the measured point instead (the rest keep the projection, where the measured point would
   /// fold or cross a triangle).
   std::size_t features = 0, restored = 0;
+  /// Border triangles peeled off (ReconstructOptions::peel_apex_deg).
+  std::size_t peeled_chords = 0;
   RefineStats refine;  ///< points the front left out that were inserted afterwards
   ZipStats zip;        ///< slits zipped at the end (options.close_gaps, zip_band)
   FillStats gaps;      ///< sampling gaps closed at the end (options.close_gaps)
