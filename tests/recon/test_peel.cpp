@@ -2,11 +2,14 @@
 // obtuse angle at an inner vertex) is removed, so the border passes through the samples.
 // SPDX-License-Identifier: MIT
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "peel.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/reconstruct.hpp"
 
 using scanmesh::recon::Vec3;
 namespace recon = scanmesh::recon;
@@ -94,5 +97,18 @@ TEST_CASE("peeling stops at the bound and leaves closed meshes and inner apexes 
     m.triangles = {{0, 1, 2}};
     CHECK(recon::detail::peel_border_chords(m, 120) == 0);
     CHECK(m.triangles.size() == 1);
+  }
+}
+
+TEST_CASE("the chord bound is validated with the other reconstruction options", "[recon][peel]") {
+  recon::ReconstructOptions opt;
+  CHECK(opt.validate().empty());  // 120 by default
+  opt.peel_apex_deg = 0;          // off
+  CHECK(opt.validate().empty());
+  for (const double bad : {45.0, 180.0, -1.0, std::nan("")}) {
+    opt.peel_apex_deg = bad;
+    const auto errors = opt.validate();
+    REQUIRE(errors.size() == 1);
+    CHECK(errors.front().find("border chord") != std::string::npos);
   }
 }
