@@ -8,6 +8,7 @@
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "support/shapes.hpp"
 
 namespace {
 
@@ -17,14 +18,7 @@ using scanmesh::recon::MeshReport;
 using scanmesh::recon::Triangle;
 using scanmesh::recon::Vec3;
 
-/// Unit right tetrahedron, outward oriented; volume 1/6.
-Mesh tetrahedron(const Vec3& offset = Vec3::Zero()) {
-  Mesh m;
-  m.vertices = {offset + Vec3(0, 0, 0), offset + Vec3(1, 0, 0), offset + Vec3(0, 1, 0),
-                offset + Vec3(0, 0, 1)};
-  m.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-  return m;
-}
+using scanmesh::test::tetrahedron;
 
 /// Octahedron with vertices at distance 1 on the axes, outward oriented; volume 4/3.
 Mesh octahedron() {

@@ -15,6 +15,15 @@ namespace scanmesh::test {
 
 using recon::Vec3;
 
+/// Unit right tetrahedron, outward oriented; volume 1/6.
+inline recon::Mesh tetrahedron(const Vec3& offset = Vec3::Zero()) {
+  recon::Mesh m;
+  m.vertices = {offset + Vec3(0, 0, 0), offset + Vec3(1, 0, 0), offset + Vec3(0, 1, 0),
+                offset + Vec3(0, 0, 1)};
+  m.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  return m;
+}
+
 /// Fibonacci sphere: n nearly uniform points on a sphere of radius r at c.
 inline std::vector<Vec3> sphere_points(std::size_t n, double r = 10, Vec3 c = Vec3::Zero()) {
   std::vector<Vec3> pts;
