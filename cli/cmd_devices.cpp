@@ -251,7 +251,7 @@ void add_devices_command(CLI::App& app, Runner& run) {
                    "Register-map profile (TOML) for modbus-sensor (default: Baumer OM30)");
   read->add_option("--samples", args->samples, "Number of samples to read")
       ->required()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   read->add_option("--name", args->config.options.name, "Device name used in messages");
   read->add_option("--timeout", args->timeout_ms, "Reply timeout in ms (default 500)");
   read->add_option("--interval", args->interval_ms,

@@ -25,6 +25,7 @@ struct FillArgs {
   // Holes, not borders: a single range scan's border runs to hundreds of edges (the bunny's
   // bun000: 499), its holes to tens (the bunny's base: 7-39).
   std::size_t max_edges = 100;
+  double max_width = 0;
   bool flat = false;
   bool ascii = false;
   bool json = false;
@@ -35,6 +36,11 @@ struct FillArgs {
 int run_fill(const FillArgs& args) {
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
+  recon::FillOptions opt;
+  opt.max_edges = args.max_edges;
+  opt.max_width = args.max_width;
+  opt.refine = !args.flat;
+  if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
   recon::Mesh mesh = meshio::read_mesh(args.mesh);
   if (mesh.triangles.empty())
     throw InputError(args.mesh + ": no triangles (" + std::to_string(mesh.vertices.size()) +
@@ -50,9 +56,6 @@ int run_fill(const FillArgs& args) {
                      " non-manifold edge(s), " + std::to_string(before.non_manifold_vertices) +
                      " non-manifold vertex(es) and " + std::to_string(before.inconsistent_edges) +
                      " inconsistently oriented edge(s) (see scanmesh inspect); nothing written");
-  recon::FillOptions opt;
-  opt.max_edges = args.max_edges;
-  opt.refine = !args.flat;
   const recon::FillStats stats = recon::fill_holes(mesh, opt);
   write_mesh_file(mesh, args.output, args.ascii);
   const recon::MeshReport after = recon::analyze(mesh);
@@ -110,6 +113,11 @@ void add_fill_command(CLI::App& app, Runner& run) {
                   "are kept")
       ->capture_default_str()
       ->check(CLI::Range(std::size_t{1}, recon::FillOptions::kLimit));
+  cmd->add_option("--max-width", args->max_width,
+                  "close only the loops at most SIZE across, in the mesh's units (the largest "
+                  "distance between two of a loop's vertices: a round hole's diameter); 0: no "
+                  "width limit")
+      ->check(kNonNegative);
   cmd->add_flag("--flat", args->flat,
                 "patch each hole with triangles of its rim's vertices only (no new vertex, no "
                 "fairing)");

@@ -96,7 +96,7 @@ void add_generate_command(CLI::App& app, Runner& run) {
   mesh_in->excludes(part);
   auto* spacing = cmd->add_option("--spacing", args->spacing_mm, "mean point spacing, mm")
                       ->capture_default_str()
-                      ->check(CLI::PositiveNumber);
+                      ->check(kPositive);
   auto* points_opt =
       cmd->add_option("--points", args->target_points,
                       "about this many points instead of --spacing (spacing from the area)")
@@ -106,7 +106,7 @@ void add_generate_command(CLI::App& app, Runner& run) {
   cmd->add_option("--noise", args->noise_mm,
                   "standard deviation of Gaussian noise along the surface normal, mm")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--seed", args->seed, "random seed (same seed, same points)")
       ->capture_default_str();
   cmd->add_option("-o,--output", args->output, "point file to write (.xyz)")->required();

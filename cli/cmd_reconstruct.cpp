@@ -38,6 +38,7 @@ struct ReconstructArgs {
   bool no_bulk = false;
   bool progress = false;
   std::size_t fill_holes = 0;
+  double fill_width = 0;
   bool fill_flat = false;
   std::string preview;
   std::string up = "z";
@@ -146,6 +147,9 @@ int run_reconstruct(const ReconstructArgs& args) {
   opt.front.keep_holes = !args.zip_holes;
   opt.front.bulk = !args.no_bulk;
   opt.fill.max_edges = args.fill_holes;
+  opt.fill.max_width = args.fill_width;
+  // A width alone closes every loop under it, whatever its edge count (up to the limit).
+  if (args.fill_width > 0 && args.fill_holes == 0) opt.fill.max_edges = recon::FillOptions::kLimit;
   opt.fill.refine = !args.fill_flat;
   if (args.inputs.empty() && args.conf.empty())
     throw ConfigError("no INPUT given (and no --conf to take the scans from)");
@@ -305,7 +309,7 @@ int run_reconstruct(const ReconstructArgs& args) {
       std::cout << "untangled gaps   " << res.untangle.closed << " (" << res.untangle.removed
                 << " triangles reaching through them removed and closed again, "
                 << res.untangle.reinserted << " points put back)\n";
-    if (args.fill_holes > 0)
+    if (opt.fill.max_edges > 0)
       std::cout << "filled holes     " << res.fill.filled << " (" << res.fill.triangles
                 << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept
                 << " loops kept, " << res.fill.crossing
@@ -373,8 +377,13 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
                   "loop, refined to the density around it and faired to continue the surface); "
                   "default 0: every hole is kept")
       ->check(CLI::Range(std::size_t{0}, recon::FillOptions::kLimit));
+  cmd->add_option("--fill-width", args->fill_width,
+                  "close the boundary loops at most SIZE across, in input units (the largest "
+                  "distance between two of a loop's vertices: a round hole's diameter); with "
+                  "--fill-holes N both limits hold, alone it takes loops of up to 1000 edges")
+      ->check(kNonNegative);
   cmd->add_flag("--fill-flat", args->fill_flat,
-                "with --fill-holes: patch each hole with triangles of its rim's vertices only "
+                "with --fill-holes or --fill-width: patch each hole with triangles of its rim's vertices only "
                 "(no new vertex, no fairing)");
   cmd->add_option("--preview", args->preview,
                   "also write a shaded picture of the mesh (.png; back faces tinted, so holes "

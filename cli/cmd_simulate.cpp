@@ -302,14 +302,14 @@ void add_simulate_command(CLI::App& app, Runner& run) {
   cmd->add_option("--spacing", args->spacing_mm,
                   "sample spacing along the lines at cruise speed, mm (default 0.2; probe: "
                   "touch spacing, default 5)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--line-spacing", args->line_spacing_mm,
                   "distance between scan lines, mm (default: 5 x spacing; line profiler: 0.8 "
                   "profile widths)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--noise", args->noise_mm, "Gaussian range noise (sigma), mm")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--dropout", args->dropout, "probability that a valid reading drops out")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
@@ -322,7 +322,7 @@ void add_simulate_command(CLI::App& app, Runner& run) {
   cmd->add_option("--stage-noise", args->stage_noise_mm,
                   "Gaussian noise on reported stage positions (sigma), mm")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--latency-us", args->latency_us,
                   "sensor latency relative to the stage clock, microseconds")
       ->capture_default_str()
@@ -331,10 +331,10 @@ void add_simulate_command(CLI::App& app, Runner& run) {
                   "line speed, mm/s (sets the sample rate: speed / spacing); probe: approach "
                   "speed")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--accel", args->accel_mm_s2, "axis acceleration limit, mm/s^2")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--views", args->views, "number of table angles for --path views")
       ->capture_default_str()
       ->check(CLI::Range(1, 360));

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <functional>
 #include <nlohmann/json.hpp>
@@ -25,6 +26,24 @@ enum ExitCode : int {
 };
 
 using Runner = std::function<int()>;
+
+/// Checks for numeric options whose messages read as a sentence (CLI11's PositiveNumber and
+/// NonNegativeNumber print their bound as a 300-digit number). NaN and infinities are refused.
+inline CLI::Validator number_above(bool or_zero) {
+  return CLI::Validator(
+      [or_zero](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v)) return "'" + text + "' is not a number";
+        if (!std::isfinite(v)) return "must be a finite number, got " + text;
+        if (or_zero ? v < 0 : v <= 0)
+          return std::string(or_zero ? "must be 0 or more" : "must be more than 0") + ", got " +
+                 text;
+        return {};
+      },
+      or_zero ? "NUMBER >= 0" : "NUMBER > 0");
+}
+inline const CLI::Validator kPositive = number_above(false);
+inline const CLI::Validator kNonNegative = number_above(true);
 
 /// The world axis named by --up ("x", "y", anything else z) for the rendered pictures.
 inline recon::Vec3 axis_of(const std::string& name) {

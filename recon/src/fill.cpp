@@ -466,6 +466,9 @@ std::vector<std::string> FillOptions::validate() const {
   if (max_edges > kLimit)
     errors.push_back("hole filling is limited to loops of at most " + std::to_string(kLimit) +
                      " edges, got " + std::to_string(max_edges));
+  if (!(max_width >= 0) || !std::isfinite(max_width))
+    errors.push_back("the hole width limit must be a finite size of 0 or more (0: none), got " +
+                     std::to_string(max_width));
   return errors;
 }
 
@@ -485,12 +488,14 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
     return stats;
   }
   const std::size_t limit = std::min(options.max_edges, FillOptions::kLimit);
-  // Loops too long for their local spacing are holes or borders, not sampling gaps.
+  // Loops too long for their local spacing are holes or borders, not sampling gaps; loops wider
+  // than the width limit are holes the user keeps.
   std::vector<char> too_long(report.loops.size(), 0);
-  if (options.max_perimeter_spacings > 0) {
-    for (std::size_t li = 0; li < report.loops.size(); ++li) {
-      const std::vector<std::uint32_t>& q = report.loops[li].vertices;
-      if (!report.loops[li].closed || q.size() < 3 || q.size() > limit) continue;
+  const double max_width2 = options.max_width * options.max_width;
+  for (std::size_t li = 0; li < report.loops.size(); ++li) {
+    const std::vector<std::uint32_t>& q = report.loops[li].vertices;
+    if (!report.loops[li].closed || q.size() < 3 || q.size() > limit) continue;
+    if (options.max_perimeter_spacings > 0) {
       detail::LoopMeasure measure;
       for (std::size_t i = 0; i < q.size(); ++i) {
         const std::uint32_t u = q[i], w = q[(i + 1) % q.size()];
@@ -498,6 +503,15 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
       }
       // (a loop through a non-finite coordinate is not a short one)
       too_long[li] = !measure.within(options.max_perimeter_spacings);
+    }
+    if (options.max_width > 0 && !too_long[li]) {
+      // The largest vertex-to-vertex distance: at most kLimit^2 / 2 pairs. (A non-finite
+      // coordinate makes a loop too wide.)
+      bool wide = false;
+      for (std::size_t i = 0; i < q.size() && !wide; ++i)
+        for (std::size_t j = i + 1; j < q.size() && !wide; ++j)
+          wide = !((mesh.vertices[q[i]] - mesh.vertices[q[j]]).squaredNorm() <= max_width2);
+      too_long[li] = wide;
     }
   }
   std::vector<char> on_small_loop(mesh.vertices.size(), 0);

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <numbers>
@@ -929,6 +930,74 @@ TEST_CASE("reconstruct --fill-holes closes loops up to the size asked, and only 
                 std::to_string(scanmesh::recon::FillOptions::kLimit + 1)});
   CHECK(r.status == 2);
   CHECK_FALSE(std::filesystem::exists(dir / "x.ply"));
+}
+
+TEST_CASE("reconstruct --fill-width and fill --max-width close the holes under a size, in the "
+          "input's units",
+          "[cli]") {
+  TempDir dir;
+  // A sphere of radius 10 with a cap cut off above z = 8 (about 12.5 wide at its rim) and a
+  // small hole beyond x = -9.5 (about 7 wide).
+  const fs::path cloud = dir / "two_holes.xyz";
+  std::string text;
+  for (const auto& p : scanmesh::test::sphere_points(6000, 10.0))
+    if (p.z() < 8 && p.x() > -9.5)
+      text += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " + std::to_string(p.z()) +
+              "\n";
+  spit(cloud, text);
+  auto r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "open.ply").string(), "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json open = json_of(r);
+  REQUIRE(open.at("boundary_loops") == 2);
+  const auto loops = open.at("boundary_loop_lengths").get<std::vector<std::size_t>>();
+  // 10 across: the small hole only, whatever its edge count.
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "small.ply").string(), "--json",
+                "--fill-width", "10"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  json j = json_of(r);
+  CHECK(j.at("filled_holes") == 1);
+  CHECK(j.at("boundary_loops") == 1);
+  CHECK(j.at("boundary_loop_lengths").at(0) == std::max(loops[0], loops[1]));
+  CHECK(j.at("genus") == 0);
+  CHECK_THAT(run(dir, {"reconstruct", cloud.string(), "-o", (dir / "small.ply").string(),
+                       "--fill-width", "10"})
+                 .out,
+             Catch::Contains("filled holes     1"));
+  // 15 across: both; with --fill-holes under the small loop's edges as well: neither.
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "both.ply").string(), "--json",
+                "--fill-width", "15"});
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("filled_holes") == 2);
+  CHECK(json_of(r).at("boundary_loops") == 0);
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "none.ply").string(), "--json",
+                "--fill-width", "15", "--fill-holes",
+                std::to_string(std::min(loops[0], loops[1]) - 1)});
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("filled_holes") == 0);
+  CHECK(json_of(r).at("boundary_loops") == 2);
+  // fill on the open mesh: --max-width 10 closes the small hole and keeps the cap's.
+  r = run(dir, {"fill", (dir / "open.ply").string(), "-o", (dir / "filled.ply").string(),
+                "--json", "--max-width", "10"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  j = json_of(r);
+  CHECK(j.at("filled_holes") == 1);
+  CHECK(j.at("kept_loops") == 1);
+  CHECK(j.at("boundary_loops") == 1);
+  // A negative or non-finite width: a usage error naming the flag, nothing written.
+  for (const char* bad : {"-1", "nan", "inf"}) {
+    r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "x.ply").string(), "--fill-width",
+                  bad});
+    CHECK(r.status == 2);
+    CHECK_THAT(r.err, Catch::Contains("--fill-width"));
+    r = run(dir, {"fill", (dir / "open.ply").string(), "-o", (dir / "x.ply").string(),
+                  "--max-width", bad});
+    CHECK(r.status == 2);
+    CHECK_THAT(r.err, Catch::Contains("--max-width"));
+  }
+  CHECK_FALSE(fs::exists(dir / "x.ply"));
 }
 
 TEST_CASE("fill closes an existing mesh's holes, and refuses what it cannot fill, writing nothing",

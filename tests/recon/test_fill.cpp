@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <numbers>
 #include <numeric>
 #include <random>
@@ -123,6 +124,83 @@ TEST_CASE("fill_holes with a perimeter limit closes a loop only when it is short
   Mesh m = half_tetrahedron();
   CHECK_THROWS_AS(fill_holes(m, opt), std::invalid_argument);  // the limit needs the spacing
   CHECK(m.triangles.size() == 2);
+}
+
+TEST_CASE("fill_holes with a width limit closes the narrow hole and keeps the wide one",
+          "[recon][fill]") {
+  // A sphere of radius 10 with two holes: a cap above z = 8 (12 wide) and a small
+  // one around -x beyond x = -9.5 (3.1 in radius: 6.2 wide).
+  std::vector<Vec3> pts;
+  for (const Vec3& p : scanmesh::test::sphere_points(6000, 10.0))
+    if (p.z() < 8 && p.x() > -9.5) pts.push_back(p);
+  const Mesh open = scanmesh::recon::reconstruct(pts, {}).mesh;
+  const auto before = analyze(open, true);
+  REQUIRE(before.boundary_loops == 2);
+  // Each loop's width as fill_holes measures it: the largest distance between two vertices.
+  std::vector<double> width;
+  for (const auto& loop : before.loops) {
+    double w = 0;
+    for (const std::uint32_t a : loop.vertices)
+      for (const std::uint32_t b : loop.vertices)
+        w = std::max(w, (open.vertices[a] - open.vertices[b]).norm());
+    width.push_back(w);
+  }
+  std::sort(width.begin(), width.end());
+  // (the rims run through the samples nearest the cuts, a spacing of 0.46 or less inside them,
+  // where the sphere is a little wider)
+  CHECK(width[0] > 6.2);
+  CHECK(width[0] < 7.5);
+  CHECK(width[1] > 12.0);
+  CHECK(width[1] < 13.0);
+  FillOptions opt;
+  opt.max_edges = FillOptions::kLimit;
+  {  // between the two: the narrow hole is closed, the wide one kept with its rim
+    Mesh m = open;
+    opt.max_width = 0.5 * (width[0] + width[1]);
+    const FillStats stats = fill_holes(m, opt);
+    CHECK(stats.filled == 1);
+    CHECK(stats.kept == 1);
+    CHECK(stats.crossing == 0);
+    const auto after = analyze(m, true);
+    REQUIRE(after.boundary_loops == 1);
+    CHECK(after.loops[0].vertices.size() ==
+          std::max(before.loops[0].vertices.size(), before.loops[1].vertices.size()));
+    CHECK(after.genus == 0);
+    CHECK(after.orientation_consistent);
+  }
+  {  // the narrow hole's width (up to rounding): closed, the limit is inclusive; under: kept
+    Mesh m = open;
+    opt.max_width = width[0] * (1 + 1e-12);
+    CHECK(fill_holes(m, opt).filled == 1);
+    m = open;
+    opt.max_width = width[0] * (1 - 1e-9);
+    CHECK(fill_holes(m, opt).filled == 0);
+    CHECK(m.triangles.size() == open.triangles.size());
+  }
+  {  // over both: closed, outward, genus 0
+    Mesh m = open;
+    opt.max_width = width[1] + 1;
+    CHECK(fill_holes(m, opt).filled == 2);
+    check_closed_outward_sphere(m);
+  }
+  {  // the edge count still holds: both limits must pass
+    Mesh m = open;
+    opt.max_width = width[1] + 1;
+    opt.max_edges = std::min(before.loops[0].vertices.size(), before.loops[1].vertices.size()) - 1;
+    CHECK(fill_holes(m, opt).filled == 0);
+  }
+  // The limit is validated: a size of 0 or more (0: none), never NaN or infinite.
+  FillOptions v;
+  CHECK(v.validate().empty());
+  v.max_width = 5;
+  CHECK(v.validate().empty());
+  for (const double bad : {-1.0, std::numeric_limits<double>::quiet_NaN(),
+                           std::numeric_limits<double>::infinity()}) {
+    v.max_width = bad;
+    const auto errors = v.validate();
+    REQUIRE(errors.size() == 1);
+    CHECK_THAT(errors[0], Catch::Contains("width"));
+  }
 }
 
 TEST_CASE("fill_holes never repeats an edge the mesh has, whatever the vertex numbering",

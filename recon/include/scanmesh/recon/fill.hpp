@@ -31,6 +31,11 @@ struct FillOptions {
   /// the edges weighted by their lengths): a sampling gap rather than a hole of the part or a
   /// scan's border. 0: loops are chosen by their edge count alone.
   double max_perimeter_spacings = 0;
+  /// When positive, a loop is closed only if it is at most this wide, in the mesh's units: the
+  /// largest distance between two of its vertices (a round hole's diameter). Lets a user say
+  /// "close the holes under 3 mm" whatever the sampling, where an edge count depends on how
+  /// densely the rim is sampled. 0: no width limit. Checked together with max_edges.
+  double max_width = 0;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
