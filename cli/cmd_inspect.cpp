@@ -1,11 +1,14 @@
 // `scanmesh inspect`: read a mesh and print its topology and quality report (text or JSON).
 // SPDX-License-Identifier: MIT
+#include <algorithm>
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "commands.hpp"
 #include "scanmesh/meshio/meshio.hpp"
@@ -33,7 +36,23 @@ std::string percent(double fraction) {
   return buf;
 }
 
-nlohmann::json to_json(const recon::MeshReport& r, const recon::SelfIntersections& x) {
+/// Each boundary loop's width (recon::loop_width: its largest vertex-to-vertex distance, what
+/// `fill --max-width` compares), in the report's order of the loops (most edges first).
+std::vector<double> loop_widths(const recon::Mesh& mesh, const recon::MeshReport& r) {
+  std::vector<std::pair<std::size_t, double>> sized;
+  for (const recon::BoundaryLoop& l : r.loops)
+    sized.emplace_back(l.closed ? l.vertices.size() : l.vertices.size() - 1,
+                       recon::loop_width(mesh, l.vertices));
+  // The report's own order: a stable sort of the walked loops by their edges, descending.
+  std::stable_sort(sized.begin(), sized.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<double> widths;
+  for (const auto& s : sized) widths.push_back(s.second);
+  return widths;
+}
+
+nlohmann::json to_json(const recon::MeshReport& r, const std::vector<double>& widths,
+                       const recon::SelfIntersections& x) {
   nlohmann::json j;
   j["vertices"] = r.vertices;
   j["referenced_vertices"] = r.referenced_vertices;
@@ -49,6 +68,7 @@ nlohmann::json to_json(const recon::MeshReport& r, const recon::SelfIntersection
   j["boundary_loops"] = r.boundary_loops;
   j["boundary_loop_lengths"] = r.boundary_loop_lengths;
   j["boundary_loop_perimeters"] = r.boundary_loop_perimeters;
+  j["boundary_loop_widths"] = widths;
   j["components"] = r.components;
   j["euler_characteristic"] = r.euler_characteristic;
   j["genus"] = r.genus;
@@ -72,7 +92,7 @@ nlohmann::json to_json(const recon::MeshReport& r, const recon::SelfIntersection
 }
 
 void print_text(const std::string& file, const recon::MeshReport& r,
-                const recon::SelfIntersections& x) {
+                const std::vector<double>& widths, const recon::SelfIntersections& x) {
   auto line = [](const char* label, const std::string& value) {
     std::cout << std::left << std::setw(25) << label << value << "\n";
   };
@@ -104,6 +124,11 @@ void print_text(const std::string& file, const recon::MeshReport& r,
       perimeters += (i > 0 ? " " : "") + num(r.boundary_loop_perimeters[i]);
     if (r.boundary_loop_perimeters.size() > kShown) perimeters += " ...";
     line("loop perimeters", perimeters);
+    std::string across;
+    for (std::size_t i = 0; i < widths.size() && i < kShown; ++i)
+      across += (i > 0 ? " " : "") + num(widths[i]);
+    if (widths.size() > kShown) across += " ...";
+    line("loop widths", across);
   }
   line("components", count(r.components));
   line("euler characteristic", std::to_string(r.euler_characteristic));
@@ -131,12 +156,13 @@ void print_text(const std::string& file, const recon::MeshReport& r,
 
 int run_inspect(const InspectArgs& args) {
   const recon::Mesh mesh = meshio::read_mesh(args.mesh);
-  const recon::MeshReport report = recon::analyze(mesh);
+  const recon::MeshReport report = recon::analyze(mesh, true);
+  const std::vector<double> widths = loop_widths(mesh, report);
   const recon::SelfIntersections crossing = recon::find_self_intersections(mesh, 8);
   if (args.json) {
-    std::cout << to_json(report, crossing).dump() << "\n";
+    std::cout << to_json(report, widths, crossing).dump() << "\n";
   } else {
-    print_text(args.mesh, report, crossing);
+    print_text(args.mesh, report, widths, crossing);
   }
   return kExitOk;
 }

@@ -371,6 +371,23 @@ MeshReport analyze(const Mesh& mesh, bool keep_loops) {
   return r;
 }
 
+double loop_width(const Mesh& mesh, std::span<const std::uint32_t> loop, double stop_above) {
+  double widest2 = 0;
+  const double stop2 = stop_above * stop_above;
+  for (std::size_t i = 0; i < loop.size(); ++i) {
+    const Vec3& a = mesh.vertices[loop[i]];
+    for (std::size_t j = i + 1; j < loop.size(); ++j) {
+      const double d2 = (mesh.vertices[loop[j]] - a).squaredNorm();
+      if (!(d2 <= widest2)) {
+        if (!std::isfinite(d2)) return std::numeric_limits<double>::infinity();
+        widest2 = d2;
+        if (widest2 > stop2) return std::sqrt(widest2);
+      }
+    }
+  }
+  return std::sqrt(widest2);
+}
+
 bool scan_like_vertices(const MeshReport& r) {
   return r.referenced_vertices >= 5000 && r.max_edge_length <= 6 * r.mean_edge_length &&
          r.frac_min_angle_below_20 <= 0.1;

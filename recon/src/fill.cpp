@@ -491,7 +491,6 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
   // Loops too long for their local spacing are holes or borders, not sampling gaps; loops wider
   // than the width limit are holes the user keeps.
   std::vector<char> too_long(report.loops.size(), 0);
-  const double max_width2 = options.max_width * options.max_width;
   for (std::size_t li = 0; li < report.loops.size(); ++li) {
     const std::vector<std::uint32_t>& q = report.loops[li].vertices;
     if (!report.loops[li].closed || q.size() < 3 || q.size() > limit) continue;
@@ -504,15 +503,9 @@ FillStats fill_holes(Mesh& mesh, const FillOptions& options,
       // (a loop through a non-finite coordinate is not a short one)
       too_long[li] = !measure.within(options.max_perimeter_spacings);
     }
-    if (options.max_width > 0 && !too_long[li]) {
-      // The largest vertex-to-vertex distance: at most kLimit^2 / 2 pairs. (A non-finite
-      // coordinate makes a loop too wide.)
-      bool wide = false;
-      for (std::size_t i = 0; i < q.size() && !wide; ++i)
-        for (std::size_t j = i + 1; j < q.size() && !wide; ++j)
-          wide = !((mesh.vertices[q[i]] - mesh.vertices[q[j]]).squaredNorm() <= max_width2);
-      too_long[li] = wide;
-    }
+    // (at most kLimit^2 / 2 pairs; a non-finite coordinate makes a loop too wide)
+    if (options.max_width > 0 && !too_long[li])
+      too_long[li] = !(loop_width(mesh, q, options.max_width) <= options.max_width);
   }
   std::vector<char> on_small_loop(mesh.vertices.size(), 0);
   for (std::size_t li = 0; li < report.loops.size(); ++li) {

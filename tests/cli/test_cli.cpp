@@ -951,6 +951,17 @@ TEST_CASE("reconstruct --fill-width and fill --max-width close the holes under a
   const json open = json_of(r);
   REQUIRE(open.at("boundary_loops") == 2);
   const auto loops = open.at("boundary_loop_lengths").get<std::vector<std::size_t>>();
+  // inspect tells the loops' widths, in the order of their edge counts: the cap's rim first.
+  r = run(dir, {"inspect", (dir / "open.ply").string(), "--json"});
+  REQUIRE(r.status == 0);
+  const auto widths = json_of(r).at("boundary_loop_widths").get<std::vector<double>>();
+  REQUIRE(widths.size() == 2);
+  CHECK(widths[0] > 12.0);
+  CHECK(widths[0] < 13.0);
+  CHECK(widths[1] > 6.2);
+  CHECK(widths[1] < 7.5);
+  CHECK_THAT(run(dir, {"inspect", (dir / "open.ply").string()}).out,
+             Catch::Contains("loop widths"));
   // 10 across: the small hole only, whatever its edge count.
   r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "small.ply").string(), "--json",
                 "--fill-width", "10"});

@@ -143,6 +143,9 @@ TEST_CASE("fill_holes with a width limit closes the narrow hole and keeps the wi
     for (const std::uint32_t a : loop.vertices)
       for (const std::uint32_t b : loop.vertices)
         w = std::max(w, (open.vertices[a] - open.vertices[b]).norm());
+    CHECK(scanmesh::recon::loop_width(open, loop.vertices) == Approx(w).epsilon(1e-12));
+    // With a stop: a pair beyond it, as soon as one is found.
+    CHECK(scanmesh::recon::loop_width(open, loop.vertices, 0.5 * w) > 0.5 * w);
     width.push_back(w);
   }
   std::sort(width.begin(), width.end());

@@ -4,6 +4,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <span>
 #include <vector>
 
 #include "scanmesh/recon/mesh.hpp"
@@ -47,6 +50,12 @@ struct MeshReport {
 
 /// With keep_loops the report also lists every boundary loop's vertices.
 MeshReport analyze(const Mesh& mesh, bool keep_loops = false);
+
+/// A loop's width: the largest distance between two of its vertices (a round hole's diameter),
+/// in mesh units; O(n^2). The search stops as soon as a pair is farther apart than `stop_above`
+/// and returns that pair's distance. A non-finite coordinate gives infinity.
+double loop_width(const Mesh& mesh, std::span<const std::uint32_t> loop,
+                  double stop_above = std::numeric_limits<double>::infinity());
 
 /// Whether a mesh's vertices sample its surface as a scan does, so that a reconstruction can
 /// take them as its points: at least 5,000 of them, no edge longer than 6 mean edges, and
