@@ -1,12 +1,14 @@
 // libFuzzer entry point for the mesh topology code that `scanmesh inspect` and the hole filling
 // run on meshes from outside: a mesh parsed from the bytes (first byte: OBJ, ASCII/binary STL or
 // PLY; next bits of that byte: flat patches or refined and faired ones, and whether only loops
-// short for a spacing from the second byte are closed) goes through analyze(), fill_holes(),
+// short for a spacing from the second byte are closed, and whether only loops at most as wide
+// as a size from the third byte are) goes through analyze(), fill_holes(),
 // untangle_gaps() and find_self_intersections(). Only scanmesh::Error is an expected outcome; a
 // manifold, consistently oriented input must stay so after filling and untangling, with each
 // filled loop gone, the added vertices counted, the existing ones unmoved, and no crossing added
 // by a patch.
 // SPDX-License-Identifier: MIT
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -52,23 +54,32 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     // Third bit: only loops short for the spacing (as the reconstruction's gap stage does), with
     // every vertex's spacing from the next byte.
     std::vector<float> spacing;
-    std::size_t short_loops = before.loops.size();
     if ((data[0] / 6) % 2 == 1) {
       opt.max_perimeter_spacings = 10;
       spacing.assign(mesh.vertices.size(), static_cast<float>(size > 1 ? data[1] : 1) / 64.0f);
-      short_loops = 0;
-      for (const recon::BoundaryLoop& loop : before.loops) {
-        double perimeter = 0;
-        for (std::size_t i = 0; i < loop.vertices.size(); ++i)
-          perimeter += (mesh.vertices[loop.vertices[(i + 1) % loop.vertices.size()]] -
-                        mesh.vertices[loop.vertices[i]])
-                           .norm();
-        if (perimeter <= 10.0 * static_cast<double>(spacing[0])) ++short_loops;
+    }
+    // Fourth bit: only loops at most (third byte) / 16 wide.
+    if ((data[0] / 12) % 2 == 1) opt.max_width = static_cast<double>(size > 2 ? data[2] : 1) / 16;
+    // The loops the limits let through, counted here by brute force.
+    std::size_t short_loops = 0;
+    for (const recon::BoundaryLoop& loop : before.loops) {
+      double perimeter = 0, width = 0;
+      for (std::size_t i = 0; i < loop.vertices.size(); ++i) {
+        const recon::Vec3& a = mesh.vertices[loop.vertices[i]];
+        perimeter += (mesh.vertices[loop.vertices[(i + 1) % loop.vertices.size()]] - a).norm();
+        for (const std::uint32_t w : loop.vertices) {
+          const double d = (mesh.vertices[w] - a).norm();
+          width = d > width || std::isnan(d) ? d : width;  // NaN: too wide
+        }
       }
+      if (opt.max_perimeter_spacings > 0 && !(perimeter <= 10.0 * static_cast<double>(spacing[0])))
+        continue;
+      if (opt.max_width > 0 && !(width <= opt.max_width * (1 + 1e-12))) continue;
+      ++short_loops;
     }
     const std::vector<recon::Vec3> vertices = mesh.vertices;
     const recon::FillStats stats = recon::fill_holes(mesh, opt, spacing);
-    if (stats.filled > short_loops) __builtin_trap();  // a loop too long was filled
+    if (stats.filled > short_loops) __builtin_trap();  // a loop too long or wide was filled
     if (mesh.vertices.size() != vertices.size() + stats.vertices) __builtin_trap();
     if (!opt.refine && stats.vertices != 0) __builtin_trap();
     for (std::size_t v = 0; v < vertices.size(); ++v)  // bitwise: NaN coordinates stay NaN
