@@ -102,7 +102,7 @@ TEST_CASE("peeling stops at the bound and leaves closed meshes and inner apexes 
 
 TEST_CASE("the chord bound is validated with the other reconstruction options", "[recon][peel]") {
   recon::ReconstructOptions opt;
-  CHECK(opt.validate().empty());  // 120 by default
+  CHECK(opt.validate().empty());  // 110 by default
   opt.peel_apex_deg = 0;          // off
   CHECK(opt.validate().empty());
   for (const double bad : {45.0, 180.0, -1.0, std::nan("")}) {

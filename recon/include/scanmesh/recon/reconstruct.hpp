@@ -44,7 +44,7 @@ struct ReconstructOptions {
   /// peeled off, until none is left, so the border passes through the samples (where a curved
   /// scan line ends the surface, the chords are fans in the line's plane, inside the part).
   /// Loops, components, genus and used points do not change. 0: off (as before stop 44).
-  double peel_apex_deg = 120.0;
+  double peel_apex_deg = 110.0;
   FrontOptions front;
   NormalOptions normals;
   RefineOptions refine;
