@@ -1,13 +1,11 @@
 // `scanmesh inspect`: read a mesh and print its topology and quality report (text or JSON).
 // SPDX-License-Identifier: MIT
-#include <algorithm>
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "commands.hpp"
@@ -39,15 +37,9 @@ std::string percent(double fraction) {
 /// Each boundary loop's width (recon::loop_width: its largest vertex-to-vertex distance, what
 /// `fill --max-width` compares), in the report's order of the loops (most edges first).
 std::vector<double> loop_widths(const recon::Mesh& mesh, const recon::MeshReport& r) {
-  std::vector<std::pair<std::size_t, double>> sized;
-  for (const recon::BoundaryLoop& l : r.loops)
-    sized.emplace_back(l.closed ? l.vertices.size() : l.vertices.size() - 1,
-                       recon::loop_width(mesh, l.vertices));
-  // The report's own order: a stable sort of the walked loops by their edges, descending.
-  std::stable_sort(sized.begin(), sized.end(),
-                   [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<double> widths;
-  for (const auto& s : sized) widths.push_back(s.second);
+  for (const std::size_t li : recon::loop_report_order(r.loops))
+    widths.push_back(recon::loop_width(mesh, r.loops[li].vertices));
   return widths;
 }
 

@@ -383,8 +383,8 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
                   "--fill-holes N both limits hold, alone it takes loops of up to 1000 edges")
       ->check(kNonNegative);
   cmd->add_flag("--fill-flat", args->fill_flat,
-                "with --fill-holes or --fill-width: patch each hole with triangles of its rim's vertices only "
-                "(no new vertex, no fairing)");
+                "with --fill-holes or --fill-width: patch each hole with triangles of its "
+                "rim's vertices only (no new vertex, no fairing)");
   cmd->add_option("--preview", args->preview,
                   "also write a shaded picture of the mesh (.png; back faces tinted, so holes "
                   "and flipped triangles show; filled holes amber)");

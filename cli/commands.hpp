@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -32,8 +33,10 @@ using Runner = std::function<int()>;
 inline CLI::Validator number_above(bool or_zero) {
   return CLI::Validator(
       [or_zero](std::string& text) -> std::string {
-        double v = 0;
-        if (!CLI::detail::lexical_cast(text, v)) return "'" + text + "' is not a number";
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size())
+          return "'" + text + "' is not a number";
         if (!std::isfinite(v)) return "must be a finite number, got " + text;
         if (or_zero ? v < 0 : v <= 0)
           return std::string(or_zero ? "must be 0 or more" : "must be more than 0") + ", got " +

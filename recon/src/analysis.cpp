@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <string>
 
 #include "scanmesh/common/error.hpp"
@@ -17,6 +18,11 @@ namespace scanmesh::recon {
 namespace {
 
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+
+/// Edges of a walked loop (an open walk, stopped at a non-manifold vertex, has one fewer).
+std::size_t loop_edges(const BoundaryLoop& l) {
+  return l.closed ? l.vertices.size() : l.vertices.size() - 1;
+}
 
 /// Union-find over dense indices with path halving.
 class DisjointSets {
@@ -342,21 +348,16 @@ MeshReport analyze(const Mesh& mesh, bool keep_loops) {
   }
 
   std::vector<BoundaryLoop> loops = walk_boundary_loops(boundary, nv);
-  // (edges, perimeter) per loop, most edges first (a stable sort on the edges only: a perimeter
-  // may be NaN when the file's coordinates are).
-  std::vector<std::pair<std::size_t, double>> sizes;
-  for (const BoundaryLoop& l : loops) {
-    const std::size_t edges = l.closed ? l.vertices.size() : l.vertices.size() - 1;
+  // (edges, perimeter) per loop, most edges first (ordered on the edges only: a perimeter may be
+  // NaN when the file's coordinates are).
+  for (const std::size_t li : loop_report_order(loops)) {
+    const BoundaryLoop& l = loops[li];
+    const std::size_t edges = loop_edges(l);
     double perimeter = 0;
     for (std::size_t i = 0; i < edges; ++i)
       perimeter += (mesh.vertices[l.vertices[(i + 1) % l.vertices.size()]] -
                     mesh.vertices[l.vertices[i]])
                        .norm();
-    sizes.emplace_back(edges, perimeter);
-  }
-  std::stable_sort(sizes.begin(), sizes.end(),
-                   [](const auto& a, const auto& b) { return a.first > b.first; });
-  for (const auto& [edges, perimeter] : sizes) {
     r.boundary_loop_lengths.push_back(edges);
     r.boundary_loop_perimeters.push_back(perimeter);
   }
@@ -369,6 +370,15 @@ MeshReport analyze(const Mesh& mesh, bool keep_loops) {
              r.euler_characteristic) /
             2;
   return r;
+}
+
+std::vector<std::size_t> loop_report_order(const std::vector<BoundaryLoop>& loops) {
+  std::vector<std::size_t> order(loops.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return loop_edges(loops[a]) > loop_edges(loops[b]);
+  });
+  return order;
 }
 
 double loop_width(const Mesh& mesh, std::span<const std::uint32_t> loop, double stop_above) {

@@ -51,6 +51,10 @@ struct MeshReport {
 /// With keep_loops the report also lists every boundary loop's vertices.
 MeshReport analyze(const Mesh& mesh, bool keep_loops = false);
 
+/// The order in which a report lists loops (boundary_loop_lengths and the arrays beside it):
+/// positions into `loops`, most edges first, ties in the order given (a stable order).
+std::vector<std::size_t> loop_report_order(const std::vector<BoundaryLoop>& loops);
+
 /// A loop's width: the largest distance between two of its vertices (a round hole's diameter),
 /// in mesh units; O(n^2). The search stops as soon as a pair is farther apart than `stop_above`
 /// and returns that pair's distance. A non-finite coordinate gives infinity.
