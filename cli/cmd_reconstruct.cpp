@@ -40,6 +40,8 @@ struct ReconstructArgs {
   std::size_t fill_holes = 0;
   double fill_width = 0;
   bool fill_flat = false;
+  bool sharpen = false;
+  recon::SharpenOptions sharpen_options;
   std::string preview;
   std::string up = "z";
 };
@@ -151,6 +153,8 @@ int run_reconstruct(const ReconstructArgs& args) {
   // A width alone closes every loop under it, whatever its edge count (up to the limit).
   if (args.fill_width > 0 && args.fill_holes == 0) opt.fill.max_edges = recon::FillOptions::kLimit;
   opt.fill.refine = !args.fill_flat;
+  opt.sharpen = args.sharpen;
+  opt.sharpen_options = args.sharpen_options;
   if (args.inputs.empty() && args.conf.empty())
     throw ConfigError("no INPUT given (and no --conf to take the scans from)");
   if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
@@ -267,6 +271,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["refine_flips"] = res.refine.flips;
     j["sliver_flips"] = res.refine.sliver_flips;
     put_fill(j, res.fill);
+    if (opt.sharpen) put_sharpen(j, res.sharpen);
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
     j["skipped_evaluations"] = res.skipped_evaluations;
@@ -314,6 +319,11 @@ int run_reconstruct(const ReconstructArgs& args) {
                 << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept
                 << " loops kept, " << res.fill.crossing
                 << " of them because a patch would cross the mesh)\n";
+    if (opt.sharpen)
+      std::cout << "sharpened        " << res.sharpen.edge_vertices << " vertices on edges, "
+                << res.sharpen.corner_vertices << " at corners (" << res.sharpen.bevel_triangles
+                << " bevel triangles, " << res.sharpen.refused
+                << " left as they were: a new vertex would cross or fold)\n";
     std::cout
               << "outliers         " << res.outliers.size()
               << (res.far_points > 0 ? " (" + std::to_string(res.far_points) +
@@ -385,6 +395,10 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_flag("--fill-flat", args->fill_flat,
                 "with --fill-holes or --fill-width: patch each hole with triangles of its "
                 "rim's vertices only (no new vertex, no fairing)");
+  cmd->add_flag("--sharpen", args->sharpen,
+                "recover the sharp edges and corners the scan bevelled: new vertices where the "
+                "faces meet (as `scanmesh sharpen`)");
+  add_sharpen_options(*cmd, args->sharpen_options, "with --sharpen: ");
   cmd->add_option("--preview", args->preview,
                   "also write a shaded picture of the mesh (.png; back faces tinted, so holes "
                   "and flipped triangles show; filled holes amber)");

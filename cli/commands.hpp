@@ -12,6 +12,7 @@
 
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
+#include "scanmesh/recon/sharpen.hpp"
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/mesh.hpp"
 
@@ -75,6 +76,15 @@ inline void put_fill(nlohmann::json& j, const recon::FillStats& f) {
   j["crossing_loops"] = f.crossing;
 }
 
+/// The edge-recovery fields `sharpen --json` and `reconstruct --sharpen --json` report.
+inline void put_sharpen(nlohmann::json& j, const recon::SharpenStats& s) {
+  j["bevel_triangles"] = s.bevel_triangles;
+  j["edge_vertices"] = s.edge_vertices;
+  j["corner_vertices"] = s.corner_vertices;
+  j["flipped_edges"] = s.flipped;
+  j["refused_bevels"] = s.refused;
+}
+
 /// Writes `mesh` like meshio::write_mesh, and warns on stderr when the file is binary STL
 /// (float32 by its format) and float cannot hold the mesh to its edge lengths (a part far from
 /// the origin): PLY, OBJ and ascii STL then keep double precision, binary STL cannot.
@@ -90,6 +100,9 @@ inline void write_mesh_file(const recon::Mesh& mesh, const std::string& file, bo
 void add_reconstruct_command(CLI::App& app, Runner& run);
 void add_inspect_command(CLI::App& app, Runner& run);
 void add_fill_command(CLI::App& app, Runner& run);
+void add_sharpen_command(CLI::App& app, Runner& run);
+/// --face-angle and --feature-angle on `cmd`, help lines prefixed by `when`.
+void add_sharpen_options(CLI::App& cmd, recon::SharpenOptions& options, const std::string& when);
 void add_deviation_command(CLI::App& app, Runner& run);
 void add_generate_command(CLI::App& app, Runner& run);
 void add_simulate_command(CLI::App&, Runner&);

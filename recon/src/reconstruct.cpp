@@ -178,6 +178,8 @@ std::vector<std::string> ReconstructOptions::validate() const {
   std::vector<std::string> errors = front.validate();
   for (auto& e : refine.validate()) errors.push_back(std::move(e));
   for (auto& e : fill.validate()) errors.push_back(std::move(e));
+  if (sharpen)
+    for (auto& e : sharpen_options.validate()) errors.push_back(std::move(e));
   if (cube_mode == CubeMode::kFixed && !(cube_mm > 0 && std::isfinite(cube_mm)))
     errors.push_back("cube size must be a positive number");
   if (gap_max_edges > FillOptions::kLimit)
@@ -435,6 +437,12 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
   }
   if (options.peel_apex_deg > 0)
     res.peeled_chords = detail::peel_border_chords(res.mesh, options.peel_apex_deg);
+  // Before the fill, whose patches then continue the recovered faces and stay the last
+  // triangles (sharpening moves the triangles it changes to the end).
+  if (options.sharpen) {
+    stage("sharpen");
+    res.sharpen = sharpen_edges(res.mesh, options.sharpen_options);
+  }
   if (options.fill.max_edges > 0) {
     stage("fill");
     res.fill = fill_holes(res.mesh, options.fill);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "scanmesh/recon/fill.hpp"
+#include "scanmesh/recon/sharpen.hpp"
 #include "scanmesh/recon/front.hpp"
 #include "scanmesh/recon/mesh.hpp"
 #include "scanmesh/recon/reduce.hpp"
@@ -66,6 +67,11 @@ struct ReconstructOptions {
   double zip_band = 0.5;
   /// Off by default: real holes stay open. On request, small loops are closed at the end.
   FillOptions fill;
+  /// Off by default: on request, the sharp edges and corners the scan bevelled are recovered at
+  /// the end, before the fill (sharpen.hpp: new vertices where the faces meet), with these
+  /// angles.
+  bool sharpen = false;
+  SharpenOptions sharpen_options;
   /// Reports every bad field at once (empty when valid).
   [[nodiscard]] std::vector<std::string> validate() const;
 };
@@ -94,6 +100,7 @@ struct ReconstructResult {
   /// Gaps left open because their patch would cross the mesh, untangled (fill.hpp).
   UntangleStats untangle;
   FillStats fill;      ///< holes closed on request (options.fill)
+  SharpenStats sharpen;  ///< edges recovered on request (options.sharpen)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
   /// Front edge evaluations not run: known to find no candidate (cost counter).
   std::size_t skipped_evaluations = 0;
@@ -111,8 +118,8 @@ struct ReconstructResult {
 /// spanning less than 1e-100, all points collinear, more than 1 % of the points far outside
 /// the body of the cloud (a few such stray points become outliers).
 /// `observer` (StageObserver, front.hpp) hears the name of each stage when it starts ("reduce",
-/// "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, and "fill" when
-/// holes are to be closed) and "done" at the end. Steps within a stage carry the stage's name
+/// "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, "sharpen" when
+/// edges are to be recovered, and "fill" when holes are to be closed) and "done" at the end. Steps within a stage carry the stage's name
 /// and a slash ("front/growth", see advance_front): a caller that times stages only counts them
 /// into the stage.
 /// `towards_sensor` (empty, or one per point): a vector from each point towards the sensor that

@@ -1,0 +1,442 @@
+// Sharp-edge recovery (sharpen.hpp): faces found by region growing over the triangles' normals,
+// bevel triangles split at the meeting point of the faces around them, edges flipped along the
+// recovered feature, and every new triangle checked against the mesh.
+// SPDX-License-Identifier: MIT
+#include "scanmesh/recon/sharpen.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <utility>
+
+#include "scanmesh/recon/intersections.hpp"
+#include "vertex_triangles.hpp"
+
+namespace scanmesh::recon {
+namespace {
+
+constexpr std::uint32_t kNone = 0xffffffffu;
+/// A new vertex must project into its bevel triangle at least this far (barycentric) from each
+/// side, so that none of the three triangles it makes is a sliver.
+constexpr double kInside = 0.05;
+/// A split is refused when one of its triangles would bend against a neighbour that keeps its
+/// shape by more than this (the cosine of about 100 degrees between their normals).
+constexpr double kFoldCos = -0.2;
+/// Three face planes make a corner only when they are this far from sharing a direction
+/// (|det| of their unit normals); otherwise the two largest faces make an edge.
+constexpr double kCornerDet = 0.25;
+/// Rounds of refusals (each refuses every bevel triangle whose new triangles crossed the mesh).
+constexpr int kMaxRounds = 16;
+
+double cos_deg(double deg) { return std::cos(deg * std::numbers::pi / 180.0); }
+
+std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
+  return (static_cast<std::uint64_t>(a) << 32) | b;
+}
+
+/// across[3 t + k]: the triangle on the other side of edge (t[k], t[k+1]), kNone on a border.
+/// False when an edge is used twice in the same direction (non-manifold or inconsistently
+/// oriented): then nothing is done.
+bool build_adjacency(const std::vector<Triangle>& tris, std::vector<std::uint32_t>& across) {
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> half;
+  half.reserve(3 * tris.size());
+  for (std::uint32_t t = 0; t < tris.size(); ++t)
+    for (std::uint32_t k = 0; k < 3; ++k)
+      half.emplace_back(edge_key(tris[t][k], tris[t][(k + 1) % 3]), 3 * t + k);
+  std::sort(half.begin(), half.end());
+  for (std::size_t i = 1; i < half.size(); ++i)
+    if (half[i].first == half[i - 1].first) return false;
+  across.assign(3 * tris.size(), kNone);
+  for (const auto& [key, h] : half) {
+    const auto a = static_cast<std::uint32_t>(key >> 32), b = static_cast<std::uint32_t>(key);
+    const auto it = std::lower_bound(half.begin(), half.end(),
+                                     std::make_pair(edge_key(b, a), std::uint32_t{0}));
+    if (it != half.end() && it->first == edge_key(b, a)) across[h] = it->second / 3;
+  }
+  return true;
+}
+
+Vec3 unit_normal(const std::vector<Vec3>& v, const Triangle& t, double* area = nullptr) {
+  const Vec3 c = (v[t[1]] - v[t[0]]).cross(v[t[2]] - v[t[0]]);
+  const double len = c.norm();
+  if (area != nullptr) *area = 0.5 * len;
+  return len > 0 ? Vec3(c / len) : Vec3::Zero();
+}
+
+/// A face seen from a bevel triangle: the area-weighted sums of its triangles' normals and
+/// centroids near the bevel.
+struct FaceSum {
+  std::uint32_t label;
+  Vec3 normal, centroid;
+  double area;
+};
+
+/// Where a bevel triangle's new vertex goes.
+struct Candidate {
+  bool ok = false;
+  bool corner = false;
+  Vec3 p = Vec3::Zero();
+  Vec3 dir = Vec3::Zero();  ///< the recovered edge's direction (edges only)
+};
+
+std::string degrees(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+}  // namespace
+
+std::vector<std::string> SharpenOptions::validate() const {
+  std::vector<std::string> errors;
+  if (!(smooth_deg > 0 && smooth_deg < 90))
+    errors.push_back("sharpen: the face angle must be above 0 and below 90 degrees, got " +
+                     degrees(smooth_deg));
+  if (!(feature_deg > smooth_deg && feature_deg < 180))
+    errors.push_back("sharpen: the feature angle must be above the face angle (" +
+                     degrees(smooth_deg) + ") and below 180 degrees, got " +
+                     degrees(feature_deg));
+  return errors;
+}
+
+SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
+  if (const auto errors = options.validate(); !errors.empty())
+    throw std::invalid_argument(errors.front());
+  SharpenStats stats;
+  const std::vector<Vec3>& verts = mesh.vertices;
+  const std::vector<Triangle>& tris = mesh.triangles;
+  const std::size_t nt = tris.size();
+  if (nt == 0) return stats;
+  for (const Triangle& t : tris)
+    for (std::uint32_t v : t)
+      if (v >= verts.size()) throw std::invalid_argument("sharpen: a triangle's index is out of range");
+  std::vector<std::uint32_t> across;
+  if (!build_adjacency(tris, across)) return stats;
+
+  std::vector<Vec3> normal(nt), centroid(nt);
+  std::vector<double> area(nt);
+  for (std::size_t t = 0; t < nt; ++t) {
+    normal[t] = unit_normal(verts, tris[t], &area[t]);
+    centroid[t] = (verts[tris[t][0]] + verts[tris[t][1]] + verts[tris[t][2]]) / 3.0;
+  }
+  const double cos_smooth = cos_deg(options.smooth_deg);
+  const double cos_feature = cos_deg(options.feature_deg);
+  auto degenerate = [&](std::size_t t) { return area[t] <= 0; };
+  auto smooth_edge = [&](std::size_t t, std::size_t k) {
+    const std::uint32_t u = across[3 * t + k];
+    return u == kNone || (!degenerate(u) && normal[t].dot(normal[u]) >= cos_smooth);
+  };
+
+  // Faces: the triangles all of whose edges are smooth, joined through smooth edges; then each
+  // triangle of no face joins the face of its most parallel neighbour when it is within the face
+  // angle of it (twice: the triangles along a face's rim have one bent edge, towards the bevel).
+  std::vector<std::uint32_t> label(nt, kNone);
+  std::vector<char> smooth(nt, 0);
+  for (std::size_t t = 0; t < nt; ++t)
+    smooth[t] = !degenerate(t) && smooth_edge(t, 0) && smooth_edge(t, 1) && smooth_edge(t, 2);
+  std::uint32_t faces = 0;
+  std::vector<std::uint32_t> stack;
+  for (std::size_t s = 0; s < nt; ++s) {
+    if (!smooth[s] || label[s] != kNone) continue;
+    label[s] = faces;
+    stack.assign(1, static_cast<std::uint32_t>(s));
+    while (!stack.empty()) {
+      const std::uint32_t t = stack.back();
+      stack.pop_back();
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const std::uint32_t u = across[3 * t + k];
+        if (u != kNone && smooth[u] && label[u] == kNone && smooth_edge(t, k)) {
+          label[u] = faces;
+          stack.push_back(u);
+        }
+      }
+    }
+    ++faces;
+  }
+  for (int round = 0; round < 2; ++round) {
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> joins;
+    for (std::uint32_t t = 0; t < nt; ++t) {
+      if (label[t] != kNone || degenerate(t)) continue;
+      double best = cos_smooth;
+      std::uint32_t to = kNone;
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const std::uint32_t u = across[3 * t + k];
+        if (u == kNone || label[u] == kNone) continue;
+        const double c = normal[t].dot(normal[u]);
+        if (c >= best) {
+          best = c;
+          to = label[u];
+        }
+      }
+      if (to != kNone) joins.emplace_back(t, to);
+    }
+    for (const auto& [t, l] : joins) label[t] = l;
+  }
+
+  // Each bevel triangle's new vertex from the faces around its corners (their triangles within
+  // one ring, two when one ring shows a single face).
+  const detail::VertexTriangles vt(verts.size(), tris);
+  std::vector<std::uint32_t> stamp(nt, kNone);
+  std::vector<FaceSum> sums;
+  std::vector<std::uint32_t> ring;
+  std::vector<Candidate> cand(nt);
+  std::vector<std::uint32_t> bevels;
+  for (std::uint32_t t = 0; t < nt; ++t) {
+    if (label[t] != kNone || degenerate(t)) continue;
+    bevels.push_back(t);
+    ++stats.bevel_triangles;
+    auto faces_near = [&](int rings) {
+      sums.clear();
+      ring.clear();
+      for (std::uint32_t v : tris[t])
+        for (std::uint32_t u : vt.of(v))
+          if (stamp[u] != t) {
+            stamp[u] = t;
+            ring.push_back(u);
+          }
+      for (int r = 1, done = 0; r < rings; ++r) {
+        const std::size_t first = ring.size();
+        for (std::size_t i = static_cast<std::size_t>(done); i < first; ++i)
+          for (std::uint32_t v : tris[ring[i]])
+            for (std::uint32_t u : vt.of(v))
+              if (stamp[u] != t) {
+                stamp[u] = t;
+                ring.push_back(u);
+              }
+        done = static_cast<int>(first);
+      }
+      for (std::uint32_t u : ring) {
+        if (label[u] == kNone) continue;
+        auto it = std::find_if(sums.begin(), sums.end(),
+                               [&](const FaceSum& f) { return f.label == label[u]; });
+        if (it == sums.end()) {
+          sums.push_back({label[u], Vec3::Zero(), Vec3::Zero(), 0});
+          it = sums.end() - 1;
+        }
+        it->normal += area[u] * normal[u];
+        it->centroid += area[u] * centroid[u];
+        it->area += area[u];
+      }
+      // Faces within the feature angle of a larger one are the same face for this purpose.
+      std::stable_sort(sums.begin(), sums.end(),
+                       [](const FaceSum& a, const FaceSum& b) { return a.area > b.area; });
+      std::vector<FaceSum> merged;
+      for (const FaceSum& f : sums) {
+        if (!(f.normal.norm() > 0)) continue;
+        const Vec3 n = f.normal.normalized();
+        auto it = std::find_if(merged.begin(), merged.end(), [&](const FaceSum& m) {
+          return m.normal.normalized().dot(n) > cos_feature;
+        });
+        if (it == merged.end()) {
+          merged.push_back(f);
+        } else {
+          it->normal += f.normal;
+          it->centroid += f.centroid;
+          it->area += f.area;
+        }
+      }
+      sums = std::move(merged);
+    };
+    faces_near(1);
+    if (sums.size() < 2) faces_near(2);
+    if (sums.size() < 2) continue;
+    Eigen::Matrix3d a;
+    Vec3 h;
+    Candidate c;
+    for (int i = 0; i < 2; ++i) {
+      const Vec3 n = sums[static_cast<std::size_t>(i)].normal.normalized();
+      a.row(i) = n.transpose();
+      h[i] = n.dot(sums[static_cast<std::size_t>(i)].centroid /
+                    sums[static_cast<std::size_t>(i)].area);
+    }
+    bool solved = false;
+    if (sums.size() >= 3) {
+      const Vec3 n = sums[2].normal.normalized();
+      a.row(2) = n.transpose();
+      h[2] = n.dot(sums[2].centroid / sums[2].area);
+      if (std::abs(a.determinant()) >= kCornerDet) {
+        c.p = a.partialPivLu().solve(h);
+        c.corner = true;
+        solved = true;
+      }
+    }
+    if (!solved) {
+      const Vec3 d = Vec3(a.row(0).transpose()).cross(Vec3(a.row(1).transpose()));
+      if (!(d.norm() > 0)) continue;
+      c.dir = d.normalized();
+      a.row(2) = c.dir.transpose();
+      h[2] = c.dir.dot(centroid[t]);  // the point of the line nearest the bevel's centroid
+      c.p = a.partialPivLu().solve(h);
+    }
+    if (!c.p.allFinite()) continue;
+    const Vec3& p0 = verts[tris[t][0]];
+    const Vec3& p1 = verts[tris[t][1]];
+    const Vec3& p2 = verts[tris[t][2]];
+    const Vec3* corner[3] = {&p0, &p1, &p2};
+    // Twice the area of the sub-triangle over side k, as a share of the bevel's: the barycentric
+    // weight of the opposite corner, affine along the line.
+    auto weight = [&](int k, const Vec3& x) {
+      const Vec3& u = *corner[k];
+      const Vec3& w = *corner[(k + 1) % 3];
+      return normal[t].dot((w - u).cross(x - u)) * 0.5 / area[t];
+    };
+    if (!c.corner) {
+      // An edge: of the line's points over the bevel with every weight at least kInside, the
+      // one nearest the point over its centroid (the line crosses a bevel strip slantwise, and
+      // the point nearest the centroid may lie over a neighbour; taking the nearest rather than
+      // the middle keeps the new vertices of a strip in the order of its triangles).
+      double lo = -std::numeric_limits<double>::infinity(), hi = -lo;
+      bool outside = false;
+      for (int k = 0; k < 3; ++k) {
+        const double w0 = weight(k, c.p), slope = weight(k, c.p + c.dir) - w0;
+        if (std::abs(slope) < 1e-12) {
+          outside |= w0 < kInside;  // parallel to side k
+          continue;
+        }
+        const double s0 = (kInside - w0) / slope;
+        if (slope > 0) lo = std::max(lo, s0);
+        else hi = std::min(hi, s0);
+      }
+      if (outside || !(lo <= hi) || !std::isfinite(lo) || !std::isfinite(hi)) continue;
+      c.p += std::clamp(0.0, lo, hi) * c.dir;
+    }
+    // Over the bevel (its projection inside, away from the sides) and within a longest edge of
+    // its plane: farther, the faces' planes are no longer what the bevel cut.
+    const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
+    const double height = normal[t].dot(c.p - centroid[t]);
+    if (std::abs(height) > longest) continue;
+    if (weight(0, c.p) < kInside * 0.999 || weight(1, c.p) < kInside * 0.999 ||
+        weight(2, c.p) < kInside * 0.999)
+      continue;
+    c.ok = true;
+    cand[t] = c;
+  }
+
+  // Apply the splits and flips of the bevels not refused; check the new triangles against the
+  // mesh; refuse the bevels whose triangles cross and start again from the input.
+  std::vector<char> refused(nt, 0);
+  for (int round = 0; round < kMaxRounds; ++round) {
+    std::vector<Vec3> v = verts;
+    std::vector<Triangle> out = tris;
+    std::vector<std::uint32_t> origin(nt, kNone);  // bevel triangle that made a triangle
+    std::vector<std::uint32_t> partner(nt, kNone);  // the other bevel of a flipped pair
+    std::vector<std::array<std::uint32_t, 3>> sub(nt, {kNone, kNone, kNone});
+    std::vector<std::uint32_t> apex(nt, kNone);
+    std::vector<char> split(nt, 0);
+    for (std::uint32_t t : bevels)
+      split[t] = cand[t].ok && !refused[t];
+    // A split whose triangle bends against a neighbour that is not split (past ~100 degrees)
+    // would fold; refuse it before anything is made.
+    for (std::uint32_t t : bevels) {
+      if (!split[t]) continue;
+      for (std::uint32_t k = 0; k < 3 && split[t]; ++k) {
+        const std::uint32_t u = across[3 * t + k];
+        if (u == kNone || split[u]) continue;
+        const Triangle s{tris[t][k], tris[t][(k + 1) % 3], 0};
+        const Vec3 n = (v[s[1]] - v[s[0]]).cross(cand[t].p - v[s[0]]).normalized();
+        if (n.dot(normal[u]) < kFoldCos) split[t] = 0;
+      }
+    }
+    SharpenStats st;
+    st.bevel_triangles = stats.bevel_triangles;
+    for (std::uint32_t t : bevels) {
+      if (!split[t]) continue;
+      const auto p = static_cast<std::uint32_t>(v.size());
+      v.push_back(cand[t].p);
+      apex[t] = p;
+      (cand[t].corner ? st.corner_vertices : st.edge_vertices)++;
+      const Triangle old = tris[t];
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const Triangle s{old[k], old[(k + 1) % 3], p};
+        std::uint32_t id = t;
+        if (k == 0) {
+          out[t] = s;
+        } else {
+          id = static_cast<std::uint32_t>(out.size());
+          out.push_back(s);
+          origin.push_back(kNone);
+          partner.push_back(kNone);
+        }
+        origin[id] = t;
+        sub[t][k] = id;
+      }
+    }
+    // Flips: across an edge (a, b) of two split bevels, (a, b, pT) and (b, a, pU) become
+    // (pT, a, pU) and (pU, b, pT) when the new edge pT-pU follows the recovered feature. Two
+    // split neighbours that cannot be flipped raise two tents over their edge that lean into
+    // the triangles beside them: the one higher over its bevel is refused, and the round starts
+    // again.
+    const double cos_along = cos_deg(30);
+    auto try_flip = [&](std::uint32_t t, std::uint32_t k, std::uint32_t u) {
+      const std::uint32_t a = tris[t][k], b = tris[t][(k + 1) % 3];
+      std::uint32_t ku = 0;
+      while (ku < 3 && !(tris[u][ku] == b && tris[u][(ku + 1) % 3] == a)) ++ku;
+      if (ku == 3) return false;
+      const std::uint32_t pt = apex[t], pu = apex[u];
+      const Vec3 e = v[pu] - v[pt];
+      const double len = e.norm();
+      if (!(len > 0)) return false;
+      if (!cand[t].corner && std::abs(cand[t].dir.dot(e)) < cos_along * len) return false;
+      if (!cand[u].corner && std::abs(cand[u].dir.dot(e)) < cos_along * len) return false;
+      const Triangle x{pt, a, pu}, y{pu, b, pt};
+      double ax = 0, ay = 0;
+      const Vec3 nx = unit_normal(v, x, &ax), ny = unit_normal(v, y, &ay);
+      const Vec3 before = unit_normal(v, out[sub[t][k]]) + unit_normal(v, out[sub[u][ku]]);
+      if (!(ax > 1e-12 * len * len) || !(ay > 1e-12 * len * len)) return false;
+      if (nx.dot(before) <= 0 || ny.dot(before) <= 0) return false;
+      out[sub[t][k]] = x;
+      out[sub[u][ku]] = y;
+      // Both bevels are refused if the pair crosses the mesh.
+      partner[sub[t][k]] = u;
+      partner[sub[u][ku]] = t;
+      ++st.flipped;
+      return true;
+    };
+    auto lift = [&](std::uint32_t t) { return std::abs(normal[t].dot(cand[t].p - centroid[t])); };
+    bool conflict = false;
+    for (std::uint32_t t : bevels) {
+      if (!split[t]) continue;
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const std::uint32_t u = across[3 * t + k];
+        if (u == kNone || u < t || !split[u] || try_flip(t, k, u)) continue;
+        refused[lift(u) > lift(t) ? u : t] = 1;
+        conflict = true;
+      }
+    }
+    if (conflict) continue;
+    // The new triangles last, so the check tests only pairs with one of them.
+    std::vector<std::uint32_t> order;
+    order.reserve(out.size());
+    for (std::uint32_t i = 0; i < out.size(); ++i)
+      if (origin[i] == kNone) order.push_back(i);
+    const std::size_t from = order.size();
+    for (std::uint32_t i = 0; i < out.size(); ++i)
+      if (origin[i] != kNone) order.push_back(i);
+    std::vector<Triangle> sorted(out.size());
+    for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = out[order[i]];
+    const SelfIntersections crossing = find_self_intersections(v, sorted, kAllPairs, from);
+    if (crossing.pairs == 0) {
+      st.refused = static_cast<std::size_t>(std::count_if(
+          bevels.begin(), bevels.end(), [&](std::uint32_t t) { return cand[t].ok && !split[t]; }));
+      mesh.vertices = std::move(v);
+      mesh.triangles = std::move(sorted);
+      return st;
+    }
+    for (const auto& pair : crossing.examples)
+      for (std::uint32_t i : pair)
+        if (i >= from) {
+          refused[origin[order[i]]] = 1;
+          if (partner[order[i]] != kNone) refused[partner[order[i]]] = 1;
+        }
+  }
+  stats.refused = static_cast<std::size_t>(
+      std::count_if(bevels.begin(), bevels.end(), [&](std::uint32_t t) { return cand[t].ok; }));
+  return stats;  // every round crossed: the mesh is left as it was
+}
+
+}  // namespace scanmesh::recon
