@@ -2,9 +2,10 @@
 // run on meshes from outside: a mesh parsed from the bytes (first byte: OBJ, ASCII/binary STL or
 // PLY; next bits of that byte: flat patches or refined and faired ones, and whether only loops
 // short for a spacing from the second byte are closed, and whether only loops at most as wide
-// as a size from the third byte are) goes through analyze(), fill_holes(),
+// as a size from the third byte are) goes through analyze(), sharpen_edges(), fill_holes(),
 // untangle_gaps() and find_self_intersections(). Only scanmesh::Error is an expected outcome; a
-// manifold, consistently oriented input must stay so after filling and untangling, with each
+// manifold, consistently oriented input must stay so after sharpening (of the same topology,
+// without crossings when it had none), filling and untangling, with each
 // filled loop gone, the added vertices counted, the existing ones unmoved, and no crossing added
 // by a patch.
 // SPDX-License-Identifier: MIT
@@ -20,6 +21,7 @@
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/intersections.hpp"
+#include "scanmesh/recon/sharpen.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
@@ -48,6 +50,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     for (const auto& [a, b] : crossing.examples)
       if (a >= b || b >= mesh.triangles.size()) __builtin_trap();
     const std::size_t old_triangles = mesh.triangles.size();
+    // Sharp-edge recovery on a copy: a clean input without crossings stays clean, of the same
+    // topology and without crossings, its vertices unmoved and the new ones counted.
+    if (before.non_manifold_edges == 0 && before.non_manifold_vertices == 0 &&
+        before.orientation_consistent && crossing.pairs == 0) {
+      recon::Mesh sharp = mesh;
+      const recon::SharpenStats st = recon::sharpen_edges(sharp);
+      if (sharp.vertices.size() != mesh.vertices.size() + st.edge_vertices + st.corner_vertices ||
+          (!mesh.vertices.empty() &&
+           std::memcmp(sharp.vertices.data(), mesh.vertices.data(),
+                       mesh.vertices.size() * sizeof(recon::Vec3)) != 0))
+        __builtin_trap();
+      const recon::MeshReport r = recon::analyze(sharp);
+      if (r.non_manifold_edges != 0 || r.non_manifold_vertices != 0 || !r.orientation_consistent ||
+          r.boundary_loops != before.boundary_loops || r.components != before.components ||
+          r.genus != before.genus || recon::find_self_intersections(sharp, 0).pairs != 0)
+        __builtin_trap();
+    }
     recon::FillOptions opt;
     opt.max_edges = 64;
     opt.refine = (data[0] / 3) % 2 == 0;

@@ -1289,3 +1289,77 @@ TEST_CASE("reconstruct: the points the front left out are inserted, --no-insert 
   CHECK(jc.at("hausdorff").get<double>() <= jd.at("hausdorff").get<double>());
   CHECK(jc.at("ref_to_mesh").at("p95").get<double>() < jd.at("ref_to_mesh").at("p95").get<double>());
 }
+
+TEST_CASE("sharpen and reconstruct --sharpen put a scanned box's edges back; bad angles and "
+          "point clouds are refused, nothing written",
+          "[cli]") {
+  TempDir dir;
+  // A 10 mm box sampled every 0.5 mm, half a step in from its edges: no sample on an edge.
+  const fs::path cloud = dir / "box.xyz";
+  std::string text;
+  for (int axis = 0; axis < 3; ++axis)
+    for (const double side : {0.0, 10.0})
+      for (int i = 0; i < 20; ++i)
+        for (int j = 0; j < 20; ++j) {
+          double p[3];
+          p[axis] = side;
+          p[(axis + 1) % 3] = (i + 0.5) * 0.5;
+          p[(axis + 2) % 3] = (j + 0.5) * 0.5;
+          text += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " +
+                  std::to_string(p[2]) + "\n";
+        }
+  spit(cloud, text);
+  auto r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "plain.ply").string(), "--json"});
+  REQUIRE(r.status == 0);
+  const json plain = json_of(r);
+  CHECK(!plain.contains("edge_vertices"));  // only on request
+
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "sharp.ply").string(), "--json",
+                "--sharpen"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json sharp = json_of(r);
+  CHECK(sharp.at("edge_vertices").get<std::size_t>() >= 240);  // 12 edges of 20 steps
+  CHECK(sharp.at("bevel_triangles").get<std::size_t>() > 0);
+  CHECK(sharp.at("flipped_edges").get<std::size_t>() > 0);
+  CHECK(sharp.contains("corner_vertices"));
+  CHECK(sharp.contains("refused_bevels"));
+  CHECK(sharp.at("boundary_loops") == 0);
+  CHECK(sharp.at("genus") == 0);
+  CHECK(sharp.at("vertices").get<std::size_t>() ==
+        plain.at("vertices").get<std::size_t>() + sharp.at("edge_vertices").get<std::size_t>() +
+            sharp.at("corner_vertices").get<std::size_t>());
+
+  // The same on the mesh written without it: the same vertices (the method is deterministic).
+  r = run(dir, {"sharpen", (dir / "plain.ply").string(), "-o", (dir / "later.stl").string(),
+                "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json later = json_of(r);
+  CHECK(later.at("edge_vertices") == sharp.at("edge_vertices"));
+  CHECK(later.at("corner_vertices") == sharp.at("corner_vertices"));
+  CHECK(later.at("orientation_consistent") == true);
+  CHECK(later.at("non_manifold_edges") == 0);
+  // The box's volume is back (1000 mm^3; the bevels cut about 12 x 10 x 0.0625 off).
+  const auto before = scanmesh::recon::analyze(scanmesh::meshio::read_mesh(dir / "plain.ply"));
+  const auto after = scanmesh::recon::analyze(scanmesh::meshio::read_mesh(dir / "later.stl"));
+  CHECK(before.signed_volume < 995);
+  CHECK(after.signed_volume > 998.5);
+  CHECK(after.signed_volume < 1000.5);
+
+  // Usage errors: exit 2, the flag named, nothing written.
+  r = run(dir, {"sharpen", (dir / "plain.ply").string(), "-o", (dir / "bad.ply").string(),
+                "--feature-angle", "5"});
+  CHECK(r.status == 2);
+  CHECK(r.err.find("feature angle") != std::string::npos);
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "bad.ply").string(), "--sharpen",
+                "--face-angle", "0"});
+  CHECK(r.status == 2);
+  CHECK(r.err.find("--face-angle") != std::string::npos);
+  // A point cloud has no triangles to sharpen: exit 3, said so.
+  spit(dir / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+  r = run(dir, {"sharpen", (dir / "points.obj").string(), "-o", (dir / "bad.ply").string()});
+  CHECK(r.status == 3);
+  CHECK(r.err.find("no triangles") != std::string::npos);
+  CHECK(!fs::exists(dir / "bad.ply"));
+}
