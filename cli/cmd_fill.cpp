@@ -41,11 +41,7 @@ int run_fill(const FillArgs& args) {
   opt.max_width = args.max_width;
   opt.refine = !args.flat;
   if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
-  recon::Mesh mesh = meshio::read_mesh(args.mesh);
-  if (mesh.triangles.empty())
-    throw InputError(args.mesh + ": no triangles (" + std::to_string(mesh.vertices.size()) +
-                     " vertices only: a point cloud? `scanmesh reconstruct` meshes it); nothing "
-                     "written");
+  recon::Mesh mesh = read_triangle_mesh(args.mesh);
   const recon::MeshReport before = recon::analyze(mesh);
   // The patches are only defined where every vertex has one fan and the sides agree; say which
   // test failed rather than writing the mesh back unchanged.

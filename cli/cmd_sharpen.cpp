@@ -31,11 +31,7 @@ int run_sharpen(const SharpenArgs& args) {
   const auto t0 = Clock::now();
   if (const auto errors = args.options.validate(); !errors.empty())
     throw ConfigError(errors.front());
-  recon::Mesh mesh = meshio::read_mesh(args.mesh);
-  if (mesh.triangles.empty())
-    throw InputError(args.mesh + ": no triangles (" + std::to_string(mesh.vertices.size()) +
-                     " vertices only: a point cloud? `scanmesh reconstruct` meshes it); nothing "
-                     "written");
+  recon::Mesh mesh = read_triangle_mesh(args.mesh);
   const recon::MeshReport before = recon::analyze(mesh);
   if (before.non_manifold_edges > 0 || !before.orientation_consistent)
     throw InputError(args.mesh + ": edges can only be sharpened in a manifold, consistently " +

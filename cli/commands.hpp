@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/sharpen.hpp"
@@ -83,6 +84,17 @@ inline void put_sharpen(nlohmann::json& j, const recon::SharpenStats& s) {
   j["corner_vertices"] = s.corner_vertices;
   j["flipped_edges"] = s.flipped;
   j["refused_bevels"] = s.refused;
+}
+
+/// Reads the mesh a command works on (fill, sharpen): a file of vertices only (a point cloud)
+/// is refused, naming the command that meshes it.
+inline recon::Mesh read_triangle_mesh(const std::string& file) {
+  recon::Mesh mesh = meshio::read_mesh(file);
+  if (mesh.triangles.empty())
+    throw InputError(file + ": no triangles (" + std::to_string(mesh.vertices.size()) +
+                     " vertices only: a point cloud? `scanmesh reconstruct` meshes it); nothing "
+                     "written");
+  return mesh;
 }
 
 /// Writes `mesh` like meshio::write_mesh, and warns on stderr when the file is binary STL
