@@ -74,16 +74,29 @@ std::vector<EdgePoint> sharp_edge_points(const recon::Mesh& ref, double deg, dou
   return out;
 }
 
+/// Triangles whose smallest interior angle is under 10 degrees.
+std::size_t below_10(const recon::MeshReport& r) {
+  return static_cast<std::size_t>(std::lround(r.frac_min_angle_below_10 *
+                                              static_cast<double>(r.triangles)));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   int seeds = 2;
+  recon::SharpenOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--seeds" && i + 1 < argc) {
       seeds = std::atoi(argv[++i]);
+    } else if (a == "--face-angle" && i + 1 < argc) {
+      options.smooth_deg = std::atof(argv[++i]);
+    } else if (a == "--feature-angle" && i + 1 < argc) {
+      options.feature_deg = std::atof(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: %s [--seeds N]   (seeds 1..N per part and mode, default 2)\n",
+      std::fprintf(stderr,
+                   "usage: %s [--seeds N] [--face-angle DEG] [--feature-angle DEG]\n"
+                   "  seeds 1..N per part and mode (default 2); the angles as scanmesh sharpen's\n",
                    argv[0]);
       return a == "--help" || a == "-h" ? 0 : 2;
     }
@@ -95,15 +108,23 @@ int main(int argc, char** argv) {
       {"line 4 views 0.8", sim::SensorKind::kLine, "views", 0.8, 60, 4},
       {"line 6 views 0.4", sim::SensorKind::kLine, "views", 0.4, 120, 6},
   };
-  std::printf("bench_edges: build type %s; noise %.2f mm, dropout %.2f; seeds 1..%d\n",
-              SCANMESH_BENCH_BUILD_TYPE, imp.noise_mm, imp.dropout, seeds);
+  if (const auto errors = options.validate(); !errors.empty()) {
+    std::fprintf(stderr, "%s\n", errors.front().c_str());
+    return 2;
+  }
+  std::printf(
+      "bench_edges: build type %s; noise %.2f mm, dropout %.2f; seeds 1..%d; face angle %g, "
+      "feature angle %g degrees\n",
+      SCANMESH_BENCH_BUILD_TYPE, imp.noise_mm, imp.dropout, seeds, options.smooth_deg,
+      options.feature_deg);
   std::printf(
       "edge: distance from the part's sharp edges (the points seen) to the mesh, before -> "
       "after sharpening (mean, p95, max); m->r: mesh to part after (mean, max); new: edge + "
-      "corner vertices (refused); mm\n\n");
-  std::printf("%-10s %-22s %4s %6s %17s %17s %17s %17s %13s %11s %6s\n", "part", "mode", "seed",
-              "points", "edge mean", "edge p95", "edge max", "m->r mean", "new (ref.)",
-              "loops genus", "ms");
+      "corner vertices (refused); tri. <10 deg: triangles with an angle under 10 degrees, "
+      "before -> after; mm\n\n");
+  std::printf("%-10s %-22s %4s %6s %17s %17s %17s %17s %13s %13s %11s %6s\n", "part", "mode",
+              "seed", "points", "edge mean", "edge p95", "edge max", "m->r mean", "new (ref.)",
+              "tri. <10 deg", "loops genus", "ms");
   int runs = 0, invalid = 0, changed = 0;
   for (const std::string part : {"container", "steps", "cylinder"}) {
     const recon::Mesh reference = sim::make_part(part);
@@ -118,7 +139,7 @@ int main(int argc, char** argv) {
           const recon::ReconstructResult r = recon::reconstruct(points, recon::ReconstructOptions{});
           recon::Mesh sharp = r.mesh;
           const auto t0 = std::chrono::steady_clock::now();
-          const recon::SharpenStats st = recon::sharpen_edges(sharp);
+          const recon::SharpenStats st = recon::sharpen_edges(sharp, options);
           const double ms =
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                   .count();
@@ -143,10 +164,11 @@ int main(int argc, char** argv) {
           changed += same ? 0 : 1;
           std::printf(
               "%-10s %-22s %4d %6zu %7.4f > %7.4f %7.4f > %7.4f %7.4f > %7.4f %7.4f > %7.4f "
-              "%5zu+%zu (%zu) %5zu %5ld %6.1f%s%s\n",
+              "%5zu+%zu (%zu) %5zu > %5zu %5zu %5ld %6.1f%s%s\n",
               part.c_str(), m.name, seed, sb.count, sb.mean, sa.mean, sb.p95, sa.p95, sb.max,
               sa.max, dev0.mesh_to_ref.mean, dev1.mesh_to_ref.mean, st.edge_vertices,
-              st.corner_vertices, st.refused, rep.boundary_loops, rep.genus, ms,
+              st.corner_vertices, st.refused, below_10(rep0), below_10(rep), rep.boundary_loops,
+              rep.genus, ms,
               valid ? "" : "  INVALID", same ? "" : "  TOPOLOGY CHANGED");
         } catch (const std::exception& e) {
           ++invalid;

@@ -57,7 +57,8 @@ int run_sharpen(const SharpenArgs& args) {
               << stats.bevel_triangles << "\n"
               << "new vertices     " << stats.edge_vertices << " on edges, "
               << stats.corner_vertices << " at corners (" << stats.flipped
-              << " edges flipped along them; " << stats.refused
+              << " edges flipped along them, " << stats.tidied
+              << " slivers beside the faces flipped away; " << stats.refused
               << " refused: they would cross or fold)\n"
               << "vertices         " << mesh.vertices.size() << "\n"
               << "triangles        " << mesh.triangles.size() << "\n"

@@ -278,12 +278,22 @@ SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
     const Vec3& p1 = verts[tris[t][1]];
     const Vec3& p2 = verts[tris[t][2]];
     const Vec3* corner[3] = {&p0, &p1, &p2};
-    // Twice the area of the sub-triangle over side k, as a share of the bevel's: the barycentric
-    // weight of the opposite corner, affine along the line.
+    // The sub-triangle over side k as a share of the bevel, both projected along the faces' mean
+    // normal: the barycentric weight of the opposite corner, affine along the line. Not along
+    // the bevel's own normal: a bevel cut far from the edge on one face and near it on the other
+    // is nearly parallel to the first, and along its normal the edge projects onto its rim on
+    // the second (the vertex was refused or clamped half-way).
+    Vec3 up = Vec3::Zero();
+    for (std::size_t i = 0; i < std::min<std::size_t>(sums.size(), c.corner ? 3 : 2); ++i)
+      up += sums[i].normal.normalized();
+    if (!(up.norm() > 0)) continue;
+    up.normalize();
+    const double projected = up.dot((p1 - p0).cross(p2 - p0));
+    if (!(projected > 0.2 * 2 * area[t])) continue;
     auto weight = [&](int k, const Vec3& x) {
       const Vec3& u = *corner[k];
       const Vec3& w = *corner[(k + 1) % 3];
-      return normal[t].dot((w - u).cross(x - u)) * 0.5 / area[t];
+      return up.dot((w - u).cross(x - u)) / projected;
     };
     if (!c.corner) {
       // An edge: of the line's points over the bevel with every weight at least kInside, the
@@ -409,6 +419,81 @@ SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
       }
     }
     if (conflict) continue;
+    // Tidy: a new vertex near a side of its bevel lies in the plane of the face beyond that
+    // side, and the triangle it makes over the side is a sliver in that plane. A side between
+    // two measured vertices is flipped to the diagonal through the new vertex when the pair is
+    // flat (within the face angle), stays so, and gets a larger smallest angle. The neighbour
+    // so rewritten is checked with the new triangles and refused with its bevel.
+    const auto first_new = static_cast<std::uint32_t>(verts.size());
+    for (int sweep = 0; sweep < 3; ++sweep) {
+      std::vector<std::pair<std::uint64_t, std::uint32_t>> half;
+      std::vector<char> listed(out.size(), 0);
+      auto list = [&](std::uint32_t i) {
+        if (listed[i]) return;
+        listed[i] = 1;
+        for (std::uint32_t k = 0; k < 3; ++k)
+          half.emplace_back(edge_key(out[i][k], out[i][(k + 1) % 3]), i);
+      };
+      for (std::uint32_t i = 0; i < out.size(); ++i)
+        if (origin[i] != kNone) list(i);
+      for (std::uint32_t t : bevels)
+        if (split[t])
+          for (std::uint32_t k = 0; k < 3; ++k)
+            if (across[3 * t + k] != kNone) list(across[3 * t + k]);
+      std::sort(half.begin(), half.end());
+      auto find = [&](std::uint32_t a, std::uint32_t b) {
+        const auto it = std::lower_bound(half.begin(), half.end(),
+                                         std::make_pair(edge_key(a, b), std::uint32_t{0}));
+        return it != half.end() && it->first == edge_key(a, b) ? it->second : kNone;
+      };
+      auto min_angle_cos = [&](const Triangle& x) {  // cosine of the smallest angle
+        double worst = -1;
+        for (int k = 0; k < 3; ++k) {
+          const Vec3 e1 = v[x[(k + 1) % 3]] - v[x[k]], e2 = v[x[(k + 2) % 3]] - v[x[k]];
+          const double d = e1.norm() * e2.norm();
+          worst = std::max(worst, d > 0 ? e1.dot(e2) / d : 1.0);
+        }
+        return worst;
+      };
+      std::vector<char> touched(out.size(), 0);
+      std::vector<std::uint64_t> made;  // diagonals made in this sweep (undirected)
+      for (std::uint32_t i = 0; i < out.size(); ++i) {
+        if (origin[i] == kNone || touched[i]) continue;
+        for (std::uint32_t k = 0; k < 3 && !touched[i]; ++k) {
+          const std::uint32_t a = out[i][k], b = out[i][(k + 1) % 3], p = out[i][(k + 2) % 3];
+          if (a >= first_new || b >= first_new || p < first_new) continue;
+          const std::uint32_t j = find(b, a);
+          if (j == kNone || touched[j] || j == i) continue;
+          std::uint32_t q = kNone;
+          for (std::uint32_t c : out[j])
+            if (c != a && c != b) q = c;
+          if (q == kNone || q == p) continue;
+          const std::uint64_t diagonal = edge_key(std::min(p, q), std::max(p, q));
+          if (find(p, q) != kNone || find(q, p) != kNone ||
+              std::find(made.begin(), made.end(), diagonal) != made.end())
+            continue;
+          double ai = 0, aj = 0;
+          const Vec3 ni = unit_normal(v, out[i], &ai), nj = unit_normal(v, out[j], &aj);
+          if (ni.dot(nj) < cos_smooth) continue;
+          const Triangle x{p, a, q}, y{q, b, p};
+          double ax = 0, ay = 0;
+          const Vec3 pair = (ai * ni + aj * nj).normalized();
+          const Vec3 nx = unit_normal(v, x, &ax), ny = unit_normal(v, y, &ay);
+          if (!(ax > 0) || !(ay > 0) || nx.dot(pair) < cos_smooth || ny.dot(pair) < cos_smooth)
+            continue;
+          if (std::max(min_angle_cos(x), min_angle_cos(y)) >=
+              std::max(min_angle_cos(out[i]), min_angle_cos(out[j])))
+            continue;
+          out[i] = x;
+          out[j] = y;
+          if (origin[j] == kNone) origin[j] = origin[i];
+          touched[i] = touched[j] = 1;
+          made.push_back(diagonal);
+          ++st.tidied;
+        }
+      }
+      if (made.empty()) break;
+    }
     // The new triangles last, so the check tests only pairs with one of them.
     std::vector<std::uint32_t> order;
     order.reserve(out.size());

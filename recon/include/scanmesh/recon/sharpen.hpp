@@ -3,8 +3,10 @@
 // the corner between the last sample on one face and the first on the other (up to about half a
 // spacing off the true edge). Following Attene et al.'s EdgeSharpener (SGP 2003), the faces on
 // both sides are extended and each bevel triangle gets a new vertex where they meet: on the
-// intersection line of two face planes (an edge) or at the point of three (a corner); edges
-// between two such vertices are flipped so that the recovered edge runs through them.
+// intersection line of two face planes (an edge) or at the point of three (a corner), taken
+// over the bevel as seen along the faces' mean normal (a bevel cut off-centre is nearly parallel
+// to one face); edges between two such vertices are flipped so that the recovered edge runs
+// through them, and the slivers a new vertex near a face makes are flipped away within it.
 // Pure: no I/O, no globals.
 // SPDX-License-Identifier: MIT
 #pragma once
@@ -33,6 +35,9 @@ struct SharpenStats {
   std::size_t edge_vertices = 0;    ///< new vertices on the line where two faces meet
   std::size_t corner_vertices = 0;  ///< new vertices at the point where three faces meet
   std::size_t flipped = 0;          ///< edges flipped to run between two new vertices
+  /// Slivers next to a face (a new vertex close to its bevel's side) flipped with the face's
+  /// triangle to the diagonal through the new vertex.
+  std::size_t tidied = 0;
   /// Bevel triangles left as they are because their new vertex would have made a triangle
   /// cross the mesh or fold onto a neighbour.
   std::size_t refused = 0;
