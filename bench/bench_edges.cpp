@@ -93,9 +93,11 @@ int main(int argc, char** argv) {
       options.smooth_deg = std::atof(argv[++i]);
     } else if (a == "--feature-angle" && i + 1 < argc) {
       options.feature_deg = std::atof(argv[++i]);
+    } else if (a == "--no-peel") {
+      options.peel = false;
     } else {
       std::fprintf(stderr,
-                   "usage: %s [--seeds N] [--face-angle DEG] [--feature-angle DEG]\n"
+                   "usage: %s [--seeds N] [--face-angle DEG] [--feature-angle DEG] [--no-peel]\n"
                    "  seeds 1..N per part and mode (default 2); the angles as scanmesh sharpen's\n",
                    argv[0]);
       return a == "--help" || a == "-h" ? 0 : 2;

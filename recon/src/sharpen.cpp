@@ -30,6 +30,9 @@ constexpr double kFoldCos = -0.2;
 /// Three face planes make a corner only when they are this far from sharing a direction
 /// (|det| of their unit normals); otherwise the two largest faces make an edge.
 constexpr double kCornerDet = 0.25;
+/// A face triangle's corner on another face is off its face's plane (see peel) only beyond this
+/// slope over the triangle's longest edge (about 3 degrees), whatever the plane's scatter.
+constexpr double kPeelSlope = 0.05;
 /// Rounds of refusals (each refuses every bevel triangle whose new triangles crossed the mesh).
 constexpr int kMaxRounds = 16;
 
@@ -178,10 +181,74 @@ SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
     for (const auto& [t, l] : joins) label[t] = l;
   }
 
-  // Each bevel triangle's new vertex from the faces around its corners (their triangles within
-  // one ring, two when one ring shows a single face).
   const detail::VertexTriangles vt(verts.size(), tris);
   std::vector<std::uint32_t> stamp(nt, kNone);
+  // Bevels within the face angle of a face: a bevel cut 0.2 from the edge on one face and 1.1
+  // on the other lies 10 degrees off the second and joined it above. A face triangle with a
+  // corner on another face (one at least the feature angle off) is given back to the bevels when
+  // that corner lies off its face's local plane (the face's triangles within two rings) by more
+  // than the plane's own scatter allows: a corner on the edge itself lies on both planes.
+  if (options.peel) {
+    std::vector<std::uint32_t> peel, near;
+    std::vector<std::uint32_t> off(nt, kNone);  // a corner that also belongs to another face
+    for (std::uint32_t t = 0; t < nt; ++t) {
+      if (label[t] == kNone) continue;
+      for (std::uint32_t v : tris[t])
+        for (std::uint32_t u : vt.of(v))
+          if (label[u] != kNone && label[u] != label[t] && normal[u].dot(normal[t]) < cos_feature)
+            off[t] = v;
+    }
+    for (std::uint32_t t = 0; t < nt; ++t) {
+      if (off[t] == kNone) continue;
+      near.clear();
+      for (std::uint32_t v : tris[t])
+        for (std::uint32_t u : vt.of(v))
+          if (stamp[u] != t) {
+            stamp[u] = t;
+            near.push_back(u);
+          }
+      for (std::size_t i = 0, first = near.size(); i < first; ++i)
+        for (std::uint32_t v : tris[near[i]])
+          for (std::uint32_t u : vt.of(v))
+            if (stamp[u] != t) {
+              stamp[u] = t;
+              near.push_back(u);
+            }
+      Vec3 n = Vec3::Zero(), c = Vec3::Zero();
+      double w = 0;
+      // The plane from the face's triangles that touch no other face: the bevels that joined it
+      // would tilt it towards themselves.
+      for (std::uint32_t u : near)
+        if (label[u] == label[t] && off[u] == kNone) {
+          n += area[u] * normal[u];
+          c += area[u] * centroid[u];
+          w += area[u];
+        }
+      if (!(w > 0) || !(n.norm() > 0)) continue;
+      n.normalize();
+      c /= w;
+      double sq = 0, count = 0;
+      for (std::uint32_t u : near)
+        if (label[u] == label[t] && off[u] == kNone)
+          for (std::uint32_t v : tris[u]) {
+            const double d = n.dot(verts[v] - c);
+            sq += d * d;
+            count += 1;
+          }
+      if (count < 9) continue;
+      const Vec3& p0 = verts[tris[t][0]];
+      const Vec3& p1 = verts[tris[t][1]];
+      const Vec3& p2 = verts[tris[t][2]];
+      const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
+      const double allowed = std::max(4 * std::sqrt(sq / count), kPeelSlope * longest);
+      if (std::abs(n.dot(verts[off[t]] - c)) > allowed) peel.push_back(t);
+    }
+    for (std::uint32_t t : peel) label[t] = kNone;
+    std::fill(stamp.begin(), stamp.end(), kNone);
+  }
+
+  // Each bevel triangle's new vertex from the faces around its corners (their triangles within
+  // one ring, two when one ring shows a single face).
   std::vector<FaceSum> sums;
   std::vector<std::uint32_t> ring;
   std::vector<Candidate> cand(nt);

@@ -31,11 +31,11 @@ using scanmesh::recon::Vec3;
 constexpr double kSide = 10, kStep = 0.5;
 
 /// The faces of the box [0, kSide]^3 sampled on a grid half a step in from every edge: no sample
-/// lies on an edge, as when a scanner's samples fall where they fall. With `off_centre`, each
-/// face's grid starts 0.1 in along one direction and 0.4 along the other, so that most edges
-/// are cut off-centre: 0.1 from them on one face and 0.4 on the other.
-std::vector<Vec3> box_points(bool off_centre = false) {
-  const double first[2] = {off_centre ? 0.1 : 0.5 * kStep, off_centre ? 0.4 : 0.5 * kStep};
+/// lies on an edge, as when a scanner's samples fall where they fall. Off-centre, each face's
+/// grid starts `near` in along one direction and kStep - near along the other, so that most
+/// edges are cut off-centre: `near` from them on one face and kStep - near on the other.
+std::vector<Vec3> box_points(double near = 0.5 * kStep) {
+  const double first[2] = {near, kStep - near};
   std::vector<Vec3> pts;
   const int m = static_cast<int>(kSide / kStep);
   for (int axis = 0; axis < 3; ++axis)
@@ -146,7 +146,7 @@ TEST_CASE("sharpen: edges cut off-centre are recovered too", "[sharpen]") {
   // the face angle of a face.
   scanmesh::recon::ReconstructOptions ro;
   ro.cube_mode = scanmesh::recon::ReconstructOptions::CubeMode::kNone;
-  const Mesh before = scanmesh::recon::reconstruct(box_points(true), ro).mesh;
+  const Mesh before = scanmesh::recon::reconstruct(box_points(0.1), ro).mesh;
   Mesh after = before;
   const SharpenStats st = sharpen_edges(after);
   const auto edge = box_edge_points();
@@ -171,6 +171,35 @@ TEST_CASE("sharpen: edges cut off-centre are recovered too", "[sharpen]") {
   CHECK(r1.frac_min_angle_below_10 * static_cast<double>(r1.triangles) <=
         r0.frac_min_angle_below_10 * static_cast<double>(r0.triangles) +
             0.25 * static_cast<double>(st.edge_vertices + st.corner_vertices));
+}
+
+TEST_CASE("sharpen: bevels within the face angle of a face are found by their corners",
+          "[sharpen]") {
+  // Cut 0.05 from the edge on one face and 0.45 on the other, the bevel lies 6 degrees off the
+  // second face and joins it; its corner on the first face lies 0.05 off the second's plane,
+  // far beyond that plane's scatter (none here), so it is given back to the bevels.
+  scanmesh::recon::ReconstructOptions ro;
+  ro.cube_mode = scanmesh::recon::ReconstructOptions::CubeMode::kNone;
+  const Mesh before = scanmesh::recon::reconstruct(box_points(0.05), ro).mesh;
+  const auto edge = box_edge_points();
+  const EdgeDistance d0 = edge_distance(before, edge);
+  Mesh unpeeled = before, after = before;
+  SharpenOptions no_peel;
+  no_peel.peel = false;
+  sharpen_edges(unpeeled, no_peel);
+  const SharpenStats st = sharpen_edges(after);
+  const EdgeDistance d1 = edge_distance(unpeeled, edge), d2 = edge_distance(after, edge);
+  INFO("edge distance mean " << d0.mean << " -> " << d1.mean << " without peeling, " << d2.mean
+                             << " with it; max " << d0.max << " -> " << d1.max << ", "
+                             << d2.max << "; edge vertices " << st.edge_vertices
+                             << ", corners " << st.corner_vertices << ", refused "
+                             << st.refused);
+  CHECK(d0.mean > 0.04);
+  // Without: the six edges cut 0.05 / 0.45 stay 0.050 off on average; with: 0.004-0.013.
+  CHECK(d2.mean < 0.5 * d1.mean);
+  CHECK(d2.mean < 0.15 * d0.mean);
+  check_valid(after);
+  CHECK(analyze(after).genus == analyze(before).genus);
 }
 
 TEST_CASE("sharpen: noise on the faces moves the recovered edges by about the noise",

@@ -27,6 +27,9 @@ struct SharpenOptions {
   /// The faces on the two sides of a bevel must be at least this far apart (degrees between
   /// their normals) for an edge to be recovered there; a gentler crease stays as it is.
   double feature_deg = 50;
+  /// Give back to the bevels the face triangles with a corner on another face that lies off
+  /// their face's plane (bevels within the face angle of a face).
+  bool peel = true;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
