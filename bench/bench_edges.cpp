@@ -93,11 +93,14 @@ int main(int argc, char** argv) {
       options.smooth_deg = std::atof(argv[++i]);
     } else if (a == "--feature-angle" && i + 1 < argc) {
       options.feature_deg = std::atof(argv[++i]);
+    } else if (a == "--passes" && i + 1 < argc) {
+      options.passes = std::atoi(argv[++i]);
     } else if (a == "--no-peel") {
       options.peel = false;
     } else {
       std::fprintf(stderr,
-                   "usage: %s [--seeds N] [--face-angle DEG] [--feature-angle DEG] [--no-peel]\n"
+                   "usage: %s [--seeds N] [--face-angle DEG] [--feature-angle DEG] [--passes N]\n"
+                   "          [--no-peel]\n"
                    "  seeds 1..N per part and mode (default 2); the angles as scanmesh sharpen's\n",
                    argv[0]);
       return a == "--help" || a == "-h" ? 0 : 2;
@@ -116,9 +119,9 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "bench_edges: build type %s; noise %.2f mm, dropout %.2f; seeds 1..%d; face angle %g, "
-      "feature angle %g degrees\n",
+      "feature angle %g degrees, %d pass(es), peeling %s\n",
       SCANMESH_BENCH_BUILD_TYPE, imp.noise_mm, imp.dropout, seeds, options.smooth_deg,
-      options.feature_deg);
+      options.feature_deg, options.passes, options.peel ? "on" : "off");
   std::printf(
       "edge: distance from the part's sharp edges (the points seen) to the mesh, before -> "
       "after sharpening (mean, p95, max); m->r: mesh to part after (mean, max); new: edge + "

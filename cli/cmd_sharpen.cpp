@@ -82,6 +82,12 @@ void add_sharpen_options(CLI::App& cmd, recon::SharpenOptions& options, const st
                  when + "recover an edge only between faces whose normals differ by at least DEG")
       ->capture_default_str()
       ->check(kPositive);
+  cmd.add_option("--passes", options.passes,
+                 when + "passes over the mesh, each on the one before's output: 2 brings the "
+                        "edges closer, with about twice as many thin triangles (1 to " +
+                     std::to_string(recon::SharpenOptions::kMaxPasses) + ")")
+      ->capture_default_str()
+      ->check(CLI::Range(1, recon::SharpenOptions::kMaxPasses));
 }
 
 void add_sharpen_command(CLI::App& app, Runner& run) {

@@ -55,7 +55,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (before.non_manifold_edges == 0 && before.non_manifold_vertices == 0 &&
         before.orientation_consistent && crossing.pairs == 0) {
       recon::Mesh sharp = mesh;
-      const recon::SharpenStats st = recon::sharpen_edges(sharp);
+      recon::SharpenOptions so;
+      so.passes = 1 + (data[0] / 3) % 2;  // the first byte's other bits: one pass or two
+      const recon::SharpenStats st = recon::sharpen_edges(sharp, so);
       if (sharp.vertices.size() != mesh.vertices.size() + st.edge_vertices + st.corner_vertices ||
           (!mesh.vertices.empty() &&
            std::memcmp(sharp.vertices.data(), mesh.vertices.data(),

@@ -104,12 +104,16 @@ std::vector<std::string> SharpenOptions::validate() const {
     errors.push_back("sharpen: the feature angle must be above the face angle (" +
                      degrees(smooth_deg) + ") and below 180 degrees, got " +
                      degrees(feature_deg));
+  if (!(passes >= 1 && passes <= kMaxPasses))
+    errors.push_back("sharpen: the passes must be 1 to " + std::to_string(kMaxPasses) + ", got " +
+                     std::to_string(passes));
   return errors;
 }
 
-SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
-  if (const auto errors = options.validate(); !errors.empty())
-    throw std::invalid_argument(errors.front());
+namespace {
+
+/// One pass over `mesh`.
+SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
   SharpenStats stats;
   const std::vector<Vec3>& verts = mesh.vertices;
   const std::vector<Triangle>& tris = mesh.triangles;
@@ -589,6 +593,28 @@ SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
   stats.refused = static_cast<std::size_t>(
       std::count_if(bevels.begin(), bevels.end(), [&](std::uint32_t t) { return cand[t].ok; }));
   return stats;  // every round crossed: the mesh is left as it was
+}
+
+}  // namespace
+
+SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
+  if (const auto errors = options.validate(); !errors.empty())
+    throw std::invalid_argument(errors.front());
+  // Each pass after the first sees the edges the one before recovered: the bevels beside a
+  // recovered stretch then see both faces, and the tents left where two new vertices could not
+  // be joined are split again along the line.
+  SharpenStats total;
+  for (int pass = 0; pass < options.passes; ++pass) {
+    const SharpenStats st = sharpen_pass(mesh, options);
+    if (pass == 0) total.bevel_triangles = st.bevel_triangles;
+    total.edge_vertices += st.edge_vertices;
+    total.corner_vertices += st.corner_vertices;
+    total.flipped += st.flipped;
+    total.tidied += st.tidied;
+    total.refused = st.refused;
+    if (st.edge_vertices + st.corner_vertices == 0) break;
+  }
+  return total;
 }
 
 }  // namespace scanmesh::recon

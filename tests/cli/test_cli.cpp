@@ -1339,6 +1339,12 @@ TEST_CASE("sharpen and reconstruct --sharpen put a scanned box's edges back; bad
   const json later = json_of(r);
   CHECK(later.at("edge_vertices") == sharp.at("edge_vertices"));
   CHECK(later.at("corner_vertices") == sharp.at("corner_vertices"));
+  // Two passes: the box's edges are exact after the first, so the second finds nothing to do.
+  r = run(dir, {"sharpen", (dir / "plain.ply").string(), "-o", (dir / "twice.ply").string(),
+                "--json", "--passes", "2"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  CHECK(json_of(r).at("edge_vertices") == sharp.at("edge_vertices"));
   CHECK(later.at("orientation_consistent") == true);
   CHECK(later.at("non_manifold_edges") == 0);
   // The box's volume is back (1000 mm^3; the bevels cut about 12 x 10 x 0.0625 off).
@@ -1357,6 +1363,10 @@ TEST_CASE("sharpen and reconstruct --sharpen put a scanned box's edges back; bad
                 "--face-angle", "0"});
   CHECK(r.status == 2);
   CHECK(r.err.find("--face-angle") != std::string::npos);
+  r = run(dir, {"sharpen", (dir / "plain.ply").string(), "-o", (dir / "bad.ply").string(),
+                "--passes", "0"});
+  CHECK(r.status == 2);
+  CHECK(r.err.find("--passes") != std::string::npos);
   // A point cloud has no triangles to sharpen: exit 3, said so.
   spit(dir / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
   r = run(dir, {"sharpen", (dir / "points.obj").string(), "-o", (dir / "bad.ply").string()});

@@ -200,6 +200,21 @@ TEST_CASE("sharpen: bevels within the face angle of a face are found by their co
   CHECK(d2.mean < 0.15 * d0.mean);
   check_valid(after);
   CHECK(analyze(after).genus == analyze(before).genus);
+
+  // A second pass, on the first's output: the bevels beside the recovered stretches see both
+  // faces now.
+  SharpenOptions twice;
+  twice.passes = 2;
+  Mesh again = before;
+  const SharpenStats st2 = sharpen_edges(again, twice);
+  const EdgeDistance d3 = edge_distance(again, edge);
+  INFO("two passes: mean " << d3.mean << ", max " << d3.max << ", edge vertices "
+                           << st2.edge_vertices);
+  CHECK(st2.edge_vertices > st.edge_vertices);
+  CHECK(d3.mean < d2.mean);
+  check_valid(again);
+  for (std::size_t v = 0; v < before.vertices.size(); ++v)
+    REQUIRE(again.vertices[v] == before.vertices[v]);
 }
 
 TEST_CASE("sharpen: noise on the faces moves the recovered edges by about the noise",
@@ -239,6 +254,11 @@ TEST_CASE("sharpen: bad angles are refused, a non-manifold mesh is left as it is
   CHECK_THROWS_AS(sharpen_edges(m, o), std::invalid_argument);
   o = {};
   o.feature_deg = o.smooth_deg;
+  CHECK_THROWS_AS(sharpen_edges(m, o), std::invalid_argument);
+  o = {};
+  o.passes = 0;
+  CHECK_THROWS_AS(sharpen_edges(m, o), std::invalid_argument);
+  o.passes = SharpenOptions::kMaxPasses + 1;
   CHECK_THROWS_AS(sharpen_edges(m, o), std::invalid_argument);
   CHECK(SharpenOptions{}.validate().empty());
 

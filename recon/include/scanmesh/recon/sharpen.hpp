@@ -30,6 +30,11 @@ struct SharpenOptions {
   /// Give back to the bevels the face triangles with a corner on another face that lies off
   /// their face's plane (bevels within the face angle of a face).
   bool peel = true;
+  /// Passes over the mesh, each on the one before's output: a second recovers more of the edges
+  /// (the bevels beside a recovered stretch then see both faces) at the price of more thin
+  /// triangles (bench_edges: about twice as many). At most kMaxPasses.
+  int passes = 1;
+  static constexpr int kMaxPasses = 8;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
 
@@ -42,7 +47,8 @@ struct SharpenStats {
   /// triangle to the diagonal through the new vertex.
   std::size_t tidied = 0;
   /// Bevel triangles left as they are because their new vertex would have made a triangle
-  /// cross the mesh or fold onto a neighbour.
+  /// cross the mesh or fold onto a neighbour (in the last pass; bevel_triangles counts the
+  /// first's, the other fields are summed over the passes).
   std::size_t refused = 0;
 };
 
