@@ -33,6 +33,8 @@ constexpr double kCornerDet = 0.25;
 /// A face triangle's corner on another face is off its face's plane (see peel) only beyond this
 /// slope over the triangle's longest edge (about 3 degrees), whatever the plane's scatter.
 constexpr double kPeelSlope = 0.05;
+/// Sweeps of the tidy step's flips (each flips a triangle at most once).
+constexpr int kTidySweeps = 4;
 /// Rounds of refusals (each refuses every bevel triangle whose new triangles crossed the mesh).
 constexpr int kMaxRounds = 16;
 
@@ -491,12 +493,13 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
     }
     if (conflict) continue;
     // Tidy: a new vertex near a side of its bevel lies in the plane of the face beyond that
-    // side, and the triangle it makes over the side is a sliver in that plane. A side between
-    // two measured vertices is flipped to the diagonal through the new vertex when the pair is
-    // flat (within the face angle), stays so, and gets a larger smallest angle. The neighbour
-    // so rewritten is checked with the new triangles and refused with its bevel.
+    // side, and the triangle it makes over the side is a sliver in that plane. An edge of a new
+    // triangle (not one of the recovered line's, between two new vertices) is flipped to the
+    // other diagonal of its pair when the pair is flat (within the face angle), stays so, and
+    // gets a larger smallest angle. A face triangle so rewritten is checked with the new
+    // triangles and refused with its bevel.
     const auto first_new = static_cast<std::uint32_t>(verts.size());
-    for (int sweep = 0; sweep < 3; ++sweep) {
+    for (int sweep = 0; sweep < kTidySweeps; ++sweep) {
       std::vector<std::pair<std::uint64_t, std::uint32_t>> half;
       std::vector<char> listed(out.size(), 0);
       auto list = [&](std::uint32_t i) {
@@ -505,12 +508,15 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
         for (std::uint32_t k = 0; k < 3; ++k)
           half.emplace_back(edge_key(out[i][k], out[i][(k + 1) % 3]), i);
       };
+      // Every triangle at a corner of a new one (the input's at a measured corner, rewritten
+      // or not, and the new ones), so that a diagonal's absence is known.
       for (std::uint32_t i = 0; i < out.size(); ++i)
-        if (origin[i] != kNone) list(i);
-      for (std::uint32_t t : bevels)
-        if (split[t])
-          for (std::uint32_t k = 0; k < 3; ++k)
-            if (across[3 * t + k] != kNone) list(across[3 * t + k]);
+        if (origin[i] != kNone) {
+          list(i);
+          for (std::uint32_t c : out[i])
+            if (c < first_new)
+              for (std::uint32_t u : vt.of(c)) list(u);
+        }
       std::sort(half.begin(), half.end());
       auto find = [&](std::uint32_t a, std::uint32_t b) {
         const auto it = std::lower_bound(half.begin(), half.end(),
@@ -532,7 +538,7 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
         if (origin[i] == kNone || touched[i]) continue;
         for (std::uint32_t k = 0; k < 3 && !touched[i]; ++k) {
           const std::uint32_t a = out[i][k], b = out[i][(k + 1) % 3], p = out[i][(k + 2) % 3];
-          if (a >= first_new || b >= first_new || p < first_new) continue;
+          if (a >= first_new && b >= first_new) continue;  // on the recovered line
           const std::uint32_t j = find(b, a);
           if (j == kNone || touched[j] || j == i) continue;
           std::uint32_t q = kNone;
