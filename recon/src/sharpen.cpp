@@ -114,51 +114,86 @@ std::vector<std::string> SharpenOptions::validate() const {
 
 namespace {
 
-/// One pass over `mesh`.
-SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
-  SharpenStats stats;
-  const std::vector<Vec3>& verts = mesh.vertices;
-  const std::vector<Triangle>& tris = mesh.triangles;
-  const std::size_t nt = tris.size();
-  if (nt == 0) return stats;
-  for (const Triangle& t : tris)
-    for (std::uint32_t v : t)
-      if (v >= verts.size()) throw std::invalid_argument("sharpen: a triangle's index is out of range");
+/// The mesh a pass works on: its triangles' neighbours, normals, centroids and areas, and each
+/// vertex's triangles.
+struct Surface {
+  const std::vector<Vec3>& verts;
+  const std::vector<Triangle>& tris;
   std::vector<std::uint32_t> across;
-  if (!build_adjacency(tris, across)) return stats;
+  std::vector<Vec3> normal, centroid;
+  std::vector<double> area;
+  detail::VertexTriangles vt;
 
-  std::vector<Vec3> normal(nt), centroid(nt);
-  std::vector<double> area(nt);
-  for (std::size_t t = 0; t < nt; ++t) {
-    normal[t] = unit_normal(verts, tris[t], &area[t]);
-    centroid[t] = (verts[tris[t][0]] + verts[tris[t][1]] + verts[tris[t][2]]) / 3.0;
+  Surface(const Mesh& mesh, std::vector<std::uint32_t> adjacency)
+      : verts(mesh.vertices),
+        tris(mesh.triangles),
+        across(std::move(adjacency)),
+        normal(tris.size()),
+        centroid(tris.size()),
+        area(tris.size()),
+        vt(verts.size(), tris) {
+    for (std::size_t t = 0; t < tris.size(); ++t) {
+      normal[t] = unit_normal(verts, tris[t], &area[t]);
+      centroid[t] = (verts[tris[t][0]] + verts[tris[t][1]] + verts[tris[t][2]]) / 3.0;
+    }
   }
-  const double cos_smooth = cos_deg(options.smooth_deg);
-  const double cos_feature = cos_deg(options.feature_deg);
-  auto degenerate = [&](std::size_t t) { return area[t] <= 0; };
-  auto smooth_edge = [&](std::size_t t, std::size_t k) {
-    const std::uint32_t u = across[3 * t + k];
-    return u == kNone || (!degenerate(u) && normal[t].dot(normal[u]) >= cos_smooth);
-  };
+  [[nodiscard]] std::size_t size() const { return tris.size(); }
+  [[nodiscard]] bool degenerate(std::size_t t) const { return area[t] <= 0; }
+  [[nodiscard]] double longest_edge(std::size_t t) const {
+    const Vec3& p0 = verts[tris[t][0]];
+    const Vec3& p1 = verts[tris[t][1]];
+    const Vec3& p2 = verts[tris[t][2]];
+    return std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
+  }
+  /// Appends to `out` the triangles within `rings` rings of triangle t's corners, each once
+  /// (stamp[u] == t marks those taken).
+  void rings_of(std::uint32_t t, int rings, std::vector<std::uint32_t>& stamp,
+                std::vector<std::uint32_t>& out) const {
+    for (std::uint32_t v : tris[t])
+      for (std::uint32_t u : vt.of(v))
+        if (stamp[u] != t) {
+          stamp[u] = t;
+          out.push_back(u);
+        }
+    for (int r = 1, done = 0; r < rings; ++r) {
+      const std::size_t first = out.size();
+      for (std::size_t i = static_cast<std::size_t>(done); i < first; ++i)
+        for (std::uint32_t v : tris[out[i]])
+          for (std::uint32_t u : vt.of(v))
+            if (stamp[u] != t) {
+              stamp[u] = t;
+              out.push_back(u);
+            }
+      done = static_cast<int>(first);
+    }
+  }
+};
 
-  // Faces: the triangles all of whose edges are smooth, joined through smooth edges; then each
-  // triangle of no face joins the face of its most parallel neighbour when it is within the face
-  // angle of it (twice: the triangles along a face's rim have one bent edge, towards the bevel).
+/// Faces: the triangles all of whose edges are smooth (normals within the face angle), joined
+/// through smooth edges; then each triangle of no face joins the face of its most parallel
+/// neighbour when it is within the face angle of it (twice: the triangles along a face's rim
+/// have one bent edge, towards the bevel). kNone for the bevel triangles.
+std::vector<std::uint32_t> find_faces(const Surface& s, double cos_smooth) {
+  const std::size_t nt = s.size();
+  auto smooth_edge = [&](std::size_t t, std::size_t k) {
+    const std::uint32_t u = s.across[3 * t + k];
+    return u == kNone || (!s.degenerate(u) && s.normal[t].dot(s.normal[u]) >= cos_smooth);
+  };
   std::vector<std::uint32_t> label(nt, kNone);
   std::vector<char> smooth(nt, 0);
   for (std::size_t t = 0; t < nt; ++t)
-    smooth[t] = !degenerate(t) && smooth_edge(t, 0) && smooth_edge(t, 1) && smooth_edge(t, 2);
+    smooth[t] = !s.degenerate(t) && smooth_edge(t, 0) && smooth_edge(t, 1) && smooth_edge(t, 2);
   std::uint32_t faces = 0;
   std::vector<std::uint32_t> stack;
-  for (std::size_t s = 0; s < nt; ++s) {
-    if (!smooth[s] || label[s] != kNone) continue;
-    label[s] = faces;
-    stack.assign(1, static_cast<std::uint32_t>(s));
+  for (std::size_t seed = 0; seed < nt; ++seed) {
+    if (!smooth[seed] || label[seed] != kNone) continue;
+    label[seed] = faces;
+    stack.assign(1, static_cast<std::uint32_t>(seed));
     while (!stack.empty()) {
       const std::uint32_t t = stack.back();
       stack.pop_back();
       for (std::uint32_t k = 0; k < 3; ++k) {
-        const std::uint32_t u = across[3 * t + k];
+        const std::uint32_t u = s.across[3 * t + k];
         if (u != kNone && smooth[u] && label[u] == kNone && smooth_edge(t, k)) {
           label[u] = faces;
           stack.push_back(u);
@@ -170,13 +205,13 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
   for (int round = 0; round < 2; ++round) {
     std::vector<std::pair<std::uint32_t, std::uint32_t>> joins;
     for (std::uint32_t t = 0; t < nt; ++t) {
-      if (label[t] != kNone || degenerate(t)) continue;
+      if (label[t] != kNone || s.degenerate(t)) continue;
       double best = cos_smooth;
       std::uint32_t to = kNone;
       for (std::uint32_t k = 0; k < 3; ++k) {
-        const std::uint32_t u = across[3 * t + k];
+        const std::uint32_t u = s.across[3 * t + k];
         if (u == kNone || label[u] == kNone) continue;
-        const double c = normal[t].dot(normal[u]);
+        const double c = s.normal[t].dot(s.normal[u]);
         if (c >= best) {
           best = c;
           to = label[u];
@@ -186,218 +221,311 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
     }
     for (const auto& [t, l] : joins) label[t] = l;
   }
+  return label;
+}
 
-  const detail::VertexTriangles vt(verts.size(), tris);
-  std::vector<std::uint32_t> stamp(nt, kNone);
-  // Bevels within the face angle of a face: a bevel cut 0.2 from the edge on one face and 1.1
-  // on the other lies 10 degrees off the second and joined it above. A face triangle with a
-  // corner on another face (one at least the feature angle off) is given back to the bevels when
-  // that corner lies off its face's local plane (the face's triangles within two rings) by more
-  // than the plane's own scatter allows: a corner on the edge itself lies on both planes.
-  if (options.peel) {
-    std::vector<std::uint32_t> peel, near;
-    std::vector<std::uint32_t> off(nt, kNone);  // a corner that also belongs to another face
-    for (std::uint32_t t = 0; t < nt; ++t) {
-      if (label[t] == kNone) continue;
-      for (std::uint32_t v : tris[t])
-        for (std::uint32_t u : vt.of(v))
-          if (label[u] != kNone && label[u] != label[t] && normal[u].dot(normal[t]) < cos_feature)
-            off[t] = v;
-    }
-    for (std::uint32_t t = 0; t < nt; ++t) {
-      if (off[t] == kNone) continue;
-      near.clear();
-      for (std::uint32_t v : tris[t])
-        for (std::uint32_t u : vt.of(v))
-          if (stamp[u] != t) {
-            stamp[u] = t;
-            near.push_back(u);
-          }
-      for (std::size_t i = 0, first = near.size(); i < first; ++i)
-        for (std::uint32_t v : tris[near[i]])
-          for (std::uint32_t u : vt.of(v))
-            if (stamp[u] != t) {
-              stamp[u] = t;
-              near.push_back(u);
-            }
-      Vec3 n = Vec3::Zero(), c = Vec3::Zero();
-      double w = 0;
-      // The plane from the face's triangles that touch no other face: the bevels that joined it
-      // would tilt it towards themselves.
-      for (std::uint32_t u : near)
-        if (label[u] == label[t] && off[u] == kNone) {
-          n += area[u] * normal[u];
-          c += area[u] * centroid[u];
-          w += area[u];
-        }
-      if (!(w > 0) || !(n.norm() > 0)) continue;
-      n.normalize();
-      c /= w;
-      double sq = 0, count = 0;
-      for (std::uint32_t u : near)
-        if (label[u] == label[t] && off[u] == kNone)
-          for (std::uint32_t v : tris[u]) {
-            const double d = n.dot(verts[v] - c);
-            sq += d * d;
-            count += 1;
-          }
-      if (count < 9) continue;
-      const Vec3& p0 = verts[tris[t][0]];
-      const Vec3& p1 = verts[tris[t][1]];
-      const Vec3& p2 = verts[tris[t][2]];
-      const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
-      const double allowed = std::max(4 * std::sqrt(sq / count), kPeelSlope * longest);
-      if (std::abs(n.dot(verts[off[t]] - c)) > allowed) peel.push_back(t);
-    }
-    for (std::uint32_t t : peel) label[t] = kNone;
-    std::fill(stamp.begin(), stamp.end(), kNone);
+/// Bevels within the face angle of a face: a bevel cut 0.2 from the edge on one face and 1.1
+/// on the other lies 10 degrees off the second and joined it in find_faces. A face triangle with
+/// a corner on another face (one at least the feature angle off) is given back to the bevels
+/// when that corner lies off its face's local plane (the face's triangles within two rings) by
+/// more than the plane's own scatter allows: a corner on the edge itself lies on both planes.
+void peel_bevels(const Surface& s, double cos_feature, std::vector<std::uint32_t>& label) {
+  const std::size_t nt = s.size();
+  std::vector<std::uint32_t> peel, near, stamp(nt, kNone);
+  std::vector<std::uint32_t> off(nt, kNone);  // a corner that also belongs to another face
+  for (std::uint32_t t = 0; t < nt; ++t) {
+    if (label[t] == kNone) continue;
+    for (std::uint32_t v : s.tris[t])
+      for (std::uint32_t u : s.vt.of(v))
+        if (label[u] != kNone && label[u] != label[t] && s.normal[u].dot(s.normal[t]) < cos_feature)
+          off[t] = v;
   }
+  for (std::uint32_t t = 0; t < nt; ++t) {
+    if (off[t] == kNone) continue;
+    near.clear();
+    s.rings_of(t, 2, stamp, near);
+    Vec3 n = Vec3::Zero(), c = Vec3::Zero();
+    double w = 0;
+    // The plane from the face's triangles that touch no other face: the bevels that joined it
+    // would tilt it towards themselves.
+    for (std::uint32_t u : near)
+      if (label[u] == label[t] && off[u] == kNone) {
+        n += s.area[u] * s.normal[u];
+        c += s.area[u] * s.centroid[u];
+        w += s.area[u];
+      }
+    if (!(w > 0) || !(n.norm() > 0)) continue;
+    n.normalize();
+    c /= w;
+    double sq = 0, count = 0;
+    for (std::uint32_t u : near)
+      if (label[u] == label[t] && off[u] == kNone)
+        for (std::uint32_t v : s.tris[u]) {
+          const double d = n.dot(s.verts[v] - c);
+          sq += d * d;
+          count += 1;
+        }
+    if (count < 9) continue;
+    const double allowed = std::max(4 * std::sqrt(sq / count), kPeelSlope * s.longest_edge(t));
+    if (std::abs(n.dot(s.verts[off[t]] - c)) > allowed) peel.push_back(t);
+  }
+  for (std::uint32_t t : peel) label[t] = kNone;
+}
 
-  // Each bevel triangle's new vertex from the faces around its corners (their triangles within
-  // one ring, two when one ring shows a single face).
-  std::vector<FaceSum> sums;
-  std::vector<std::uint32_t> ring;
+/// Scratch space of place_vertex, reused over the bevels.
+struct PlaceScratch {
+  std::vector<std::uint32_t> stamp, ring;
+  std::vector<FaceSum> sums, merged;
+};
+
+/// The faces among the triangles within `rings` rings of bevel t, merged where within the
+/// feature angle of a larger one, largest first.
+void faces_near(const Surface& s, const std::vector<std::uint32_t>& label, std::uint32_t t,
+                int rings, double cos_feature, PlaceScratch& x) {
+  std::vector<FaceSum>& sums = x.sums;
+  sums.clear();
+  x.ring.clear();
+  s.rings_of(t, rings, x.stamp, x.ring);
+  for (std::uint32_t u : x.ring) {
+    if (label[u] == kNone) continue;
+    auto it = std::find_if(sums.begin(), sums.end(),
+                           [&](const FaceSum& f) { return f.label == label[u]; });
+    if (it == sums.end()) {
+      sums.push_back({label[u], Vec3::Zero(), Vec3::Zero(), 0});
+      it = sums.end() - 1;
+    }
+    it->normal += s.area[u] * s.normal[u];
+    it->centroid += s.area[u] * s.centroid[u];
+    it->area += s.area[u];
+  }
+  // Faces within the feature angle of a larger one are the same face for this purpose.
+  std::stable_sort(sums.begin(), sums.end(),
+                   [](const FaceSum& a, const FaceSum& b) { return a.area > b.area; });
+  std::vector<FaceSum>& merged = x.merged;
+  merged.clear();
+  for (const FaceSum& f : sums) {
+    if (!(f.normal.norm() > 0)) continue;
+    const Vec3 n = f.normal.normalized();
+    auto it = std::find_if(merged.begin(), merged.end(), [&](const FaceSum& m) {
+      return m.normal.normalized().dot(n) > cos_feature;
+    });
+    if (it == merged.end()) {
+      merged.push_back(f);
+    } else {
+      it->normal += f.normal;
+      it->centroid += f.centroid;
+      it->area += f.area;
+    }
+  }
+  std::swap(sums, merged);
+}
+
+/// Bevel t's new vertex from the faces around its corners (their triangles within one ring, two
+/// when one ring shows a single face); ok false when none fits.
+Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label, std::uint32_t t,
+                       double cos_feature, PlaceScratch& x) {
+  const std::vector<FaceSum>& sums = x.sums;
+  faces_near(s, label, t, 1, cos_feature, x);
+  if (sums.size() < 2) faces_near(s, label, t, 2, cos_feature, x);
+  if (sums.size() < 2) return {};
+  const std::vector<Vec3>& verts = s.verts;
+  const std::vector<Triangle>& tris = s.tris;
+  Eigen::Matrix3d a;
+  Vec3 h;
+  Candidate c;
+  for (int i = 0; i < 2; ++i) {
+    const Vec3 n = sums[static_cast<std::size_t>(i)].normal.normalized();
+    a.row(i) = n.transpose();
+    h[i] = n.dot(sums[static_cast<std::size_t>(i)].centroid /
+                  sums[static_cast<std::size_t>(i)].area);
+  }
+  bool solved = false;
+  if (sums.size() >= 3) {
+    const Vec3 n = sums[2].normal.normalized();
+    a.row(2) = n.transpose();
+    h[2] = n.dot(sums[2].centroid / sums[2].area);
+    if (std::abs(a.determinant()) >= kCornerDet) {
+      c.p = a.partialPivLu().solve(h);
+      c.corner = true;
+      solved = true;
+    }
+  }
+  if (!solved) {
+    const Vec3 d = Vec3(a.row(0).transpose()).cross(Vec3(a.row(1).transpose()));
+    if (!(d.norm() > 0)) return {};
+    c.dir = d.normalized();
+    a.row(2) = c.dir.transpose();
+    h[2] = c.dir.dot(s.centroid[t]);  // the point of the line nearest the bevel's centroid
+    c.p = a.partialPivLu().solve(h);
+  }
+  if (!c.p.allFinite()) return {};
+  const Vec3& p0 = verts[tris[t][0]];
+  const Vec3& p1 = verts[tris[t][1]];
+  const Vec3& p2 = verts[tris[t][2]];
+  const Vec3* corner[3] = {&p0, &p1, &p2};
+  // The sub-triangle over side k as a share of the bevel, both projected along the faces' mean
+  // normal: the barycentric weight of the opposite corner, affine along the line. Not along
+  // the bevel's own normal: a bevel cut far from the edge on one face and near it on the other
+  // is nearly parallel to the first, and along its normal the edge projects onto its rim on
+  // the second (the vertex was refused or clamped half-way).
+  Vec3 up = Vec3::Zero();
+  for (std::size_t i = 0; i < std::min<std::size_t>(sums.size(), c.corner ? 3 : 2); ++i)
+    up += sums[i].normal.normalized();
+  if (!(up.norm() > 0)) return {};
+  up.normalize();
+  const double projected = up.dot((p1 - p0).cross(p2 - p0));
+  if (!(projected > 0.2 * 2 * s.area[t])) return {};
+  auto weight = [&](int k, const Vec3& x) {
+    const Vec3& u = *corner[k];
+    const Vec3& w = *corner[(k + 1) % 3];
+    return up.dot((w - u).cross(x - u)) / projected;
+  };
+  if (!c.corner) {
+    // An edge: of the line's points over the bevel with every weight at least kInside, the
+    // one nearest the point over its centroid (the line crosses a bevel strip slantwise, and
+    // the point nearest the centroid may lie over a neighbour; taking the nearest rather than
+    // the middle keeps the new vertices of a strip in the order of its triangles).
+    double lo = -std::numeric_limits<double>::infinity(), hi = -lo;
+    bool outside = false;
+    for (int k = 0; k < 3; ++k) {
+      const double w0 = weight(k, c.p), slope = weight(k, c.p + c.dir) - w0;
+      if (std::abs(slope) < 1e-12) {
+        outside |= w0 < kInside;  // parallel to side k
+        continue;
+      }
+      const double s0 = (kInside - w0) / slope;
+      if (slope > 0) lo = std::max(lo, s0);
+      else hi = std::min(hi, s0);
+    }
+    if (outside || !(lo <= hi) || !std::isfinite(lo) || !std::isfinite(hi)) return {};
+    c.p += std::clamp(0.0, lo, hi) * c.dir;
+  }
+  // Over the bevel (its projection inside, away from the sides) and within a longest edge of
+  // its plane: farther, the faces' planes are no longer what the bevel cut.
+  const double longest = s.longest_edge(t);
+  const double height = s.normal[t].dot(c.p - s.centroid[t]);
+  if (std::abs(height) > longest) return {};
+  if (weight(0, c.p) < kInside * 0.999 || weight(1, c.p) < kInside * 0.999 ||
+      weight(2, c.p) < kInside * 0.999)
+    return {};
+  c.ok = true;
+  return c;
+}
+
+/// Tidy: a new vertex near a side of its bevel lies in the plane of the face beyond that
+/// side, and the triangle it makes over the side is a sliver in that plane. An edge of a new
+/// triangle (not one of the recovered line's, between two new vertices) is flipped to the
+/// other diagonal of its pair when the pair is flat (within the face angle), stays so, and
+/// gets a larger smallest angle. A face triangle so rewritten is checked with the new
+/// triangles and refused with its bevel.
+void tidy(const Surface& s, double cos_smooth, const std::vector<Vec3>& v,
+          std::vector<Triangle>& out, std::vector<std::uint32_t>& origin, SharpenStats& st) {
+  const auto first_new = static_cast<std::uint32_t>(s.verts.size());
+  for (int sweep = 0; sweep < kTidySweeps; ++sweep) {
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> half;
+    std::vector<char> listed(out.size(), 0);
+    auto list = [&](std::uint32_t i) {
+      if (listed[i]) return;
+      listed[i] = 1;
+      for (std::uint32_t k = 0; k < 3; ++k)
+        half.emplace_back(edge_key(out[i][k], out[i][(k + 1) % 3]), i);
+    };
+    // Every triangle at a corner of a new one (the input's at a measured corner, rewritten
+    // or not, and the new ones), so that a diagonal's absence is known.
+    for (std::uint32_t i = 0; i < out.size(); ++i)
+      if (origin[i] != kNone) {
+        list(i);
+        for (std::uint32_t c : out[i])
+          if (c < first_new)
+            for (std::uint32_t u : s.vt.of(c)) list(u);
+      }
+    std::sort(half.begin(), half.end());
+    auto find = [&](std::uint32_t a, std::uint32_t b) {
+      const auto it = std::lower_bound(half.begin(), half.end(),
+                                       std::make_pair(edge_key(a, b), std::uint32_t{0}));
+      return it != half.end() && it->first == edge_key(a, b) ? it->second : kNone;
+    };
+    auto min_angle_cos = [&](const Triangle& x) {  // cosine of the smallest angle
+      double worst = -1;
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 e1 = v[x[(k + 1) % 3]] - v[x[k]], e2 = v[x[(k + 2) % 3]] - v[x[k]];
+        const double d = e1.norm() * e2.norm();
+        worst = std::max(worst, d > 0 ? e1.dot(e2) / d : 1.0);
+      }
+      return worst;
+    };
+    std::vector<char> touched(out.size(), 0);
+    std::vector<std::uint64_t> made;  // diagonals made in this sweep (undirected)
+    for (std::uint32_t i = 0; i < out.size(); ++i) {
+      if (origin[i] == kNone || touched[i]) continue;
+      for (std::uint32_t k = 0; k < 3 && !touched[i]; ++k) {
+        const std::uint32_t a = out[i][k], b = out[i][(k + 1) % 3], p = out[i][(k + 2) % 3];
+        if (a >= first_new && b >= first_new) continue;  // on the recovered line
+        const std::uint32_t j = find(b, a);
+        if (j == kNone || touched[j] || j == i) continue;
+        std::uint32_t q = kNone;
+        for (std::uint32_t c : out[j])
+          if (c != a && c != b) q = c;
+        if (q == kNone || q == p) continue;
+        const std::uint64_t diagonal = edge_key(std::min(p, q), std::max(p, q));
+        if (find(p, q) != kNone || find(q, p) != kNone ||
+            std::find(made.begin(), made.end(), diagonal) != made.end())
+          continue;
+        double ai = 0, aj = 0;
+        const Vec3 ni = unit_normal(v, out[i], &ai), nj = unit_normal(v, out[j], &aj);
+        if (ni.dot(nj) < cos_smooth) continue;
+        const Triangle x{p, a, q}, y{q, b, p};
+        double ax = 0, ay = 0;
+        const Vec3 pair = (ai * ni + aj * nj).normalized();
+        const Vec3 nx = unit_normal(v, x, &ax), ny = unit_normal(v, y, &ay);
+        if (!(ax > 0) || !(ay > 0) || nx.dot(pair) < cos_smooth || ny.dot(pair) < cos_smooth)
+          continue;
+        if (std::max(min_angle_cos(x), min_angle_cos(y)) >=
+            std::max(min_angle_cos(out[i]), min_angle_cos(out[j])))
+          continue;
+        out[i] = x;
+        out[j] = y;
+        if (origin[j] == kNone) origin[j] = origin[i];
+        touched[i] = touched[j] = 1;
+        made.push_back(diagonal);
+        ++st.tidied;
+      }
+    }
+    if (made.empty()) break;
+  }
+}
+
+/// One pass over `mesh`.
+SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
+  SharpenStats stats;
+  const std::size_t nt = mesh.triangles.size();
+  if (nt == 0) return stats;
+  for (const Triangle& t : mesh.triangles)
+    for (std::uint32_t v : t)
+      if (v >= mesh.vertices.size())
+        throw std::invalid_argument("sharpen: a triangle's index is out of range");
+  std::vector<std::uint32_t> adjacency;
+  if (!build_adjacency(mesh.triangles, adjacency)) return stats;
+  const Surface s(mesh, std::move(adjacency));
+  const std::vector<Vec3>& verts = s.verts;
+  const std::vector<Triangle>& tris = s.tris;
+  const std::vector<std::uint32_t>& across = s.across;
+  const std::vector<Vec3>& normal = s.normal;
+  const std::vector<Vec3>& centroid = s.centroid;
+  const double cos_smooth = cos_deg(options.smooth_deg);
+  const double cos_feature = cos_deg(options.feature_deg);
+
+  std::vector<std::uint32_t> label = find_faces(s, cos_smooth);
+  if (options.peel) peel_bevels(s, cos_feature, label);
+  PlaceScratch scratch;
+  scratch.stamp.assign(nt, kNone);
   std::vector<Candidate> cand(nt);
   std::vector<std::uint32_t> bevels;
   for (std::uint32_t t = 0; t < nt; ++t) {
-    if (label[t] != kNone || degenerate(t)) continue;
+    if (label[t] != kNone || s.degenerate(t)) continue;
     bevels.push_back(t);
     ++stats.bevel_triangles;
-    auto faces_near = [&](int rings) {
-      sums.clear();
-      ring.clear();
-      for (std::uint32_t v : tris[t])
-        for (std::uint32_t u : vt.of(v))
-          if (stamp[u] != t) {
-            stamp[u] = t;
-            ring.push_back(u);
-          }
-      for (int r = 1, done = 0; r < rings; ++r) {
-        const std::size_t first = ring.size();
-        for (std::size_t i = static_cast<std::size_t>(done); i < first; ++i)
-          for (std::uint32_t v : tris[ring[i]])
-            for (std::uint32_t u : vt.of(v))
-              if (stamp[u] != t) {
-                stamp[u] = t;
-                ring.push_back(u);
-              }
-        done = static_cast<int>(first);
-      }
-      for (std::uint32_t u : ring) {
-        if (label[u] == kNone) continue;
-        auto it = std::find_if(sums.begin(), sums.end(),
-                               [&](const FaceSum& f) { return f.label == label[u]; });
-        if (it == sums.end()) {
-          sums.push_back({label[u], Vec3::Zero(), Vec3::Zero(), 0});
-          it = sums.end() - 1;
-        }
-        it->normal += area[u] * normal[u];
-        it->centroid += area[u] * centroid[u];
-        it->area += area[u];
-      }
-      // Faces within the feature angle of a larger one are the same face for this purpose.
-      std::stable_sort(sums.begin(), sums.end(),
-                       [](const FaceSum& a, const FaceSum& b) { return a.area > b.area; });
-      std::vector<FaceSum> merged;
-      for (const FaceSum& f : sums) {
-        if (!(f.normal.norm() > 0)) continue;
-        const Vec3 n = f.normal.normalized();
-        auto it = std::find_if(merged.begin(), merged.end(), [&](const FaceSum& m) {
-          return m.normal.normalized().dot(n) > cos_feature;
-        });
-        if (it == merged.end()) {
-          merged.push_back(f);
-        } else {
-          it->normal += f.normal;
-          it->centroid += f.centroid;
-          it->area += f.area;
-        }
-      }
-      sums = std::move(merged);
-    };
-    faces_near(1);
-    if (sums.size() < 2) faces_near(2);
-    if (sums.size() < 2) continue;
-    Eigen::Matrix3d a;
-    Vec3 h;
-    Candidate c;
-    for (int i = 0; i < 2; ++i) {
-      const Vec3 n = sums[static_cast<std::size_t>(i)].normal.normalized();
-      a.row(i) = n.transpose();
-      h[i] = n.dot(sums[static_cast<std::size_t>(i)].centroid /
-                    sums[static_cast<std::size_t>(i)].area);
-    }
-    bool solved = false;
-    if (sums.size() >= 3) {
-      const Vec3 n = sums[2].normal.normalized();
-      a.row(2) = n.transpose();
-      h[2] = n.dot(sums[2].centroid / sums[2].area);
-      if (std::abs(a.determinant()) >= kCornerDet) {
-        c.p = a.partialPivLu().solve(h);
-        c.corner = true;
-        solved = true;
-      }
-    }
-    if (!solved) {
-      const Vec3 d = Vec3(a.row(0).transpose()).cross(Vec3(a.row(1).transpose()));
-      if (!(d.norm() > 0)) continue;
-      c.dir = d.normalized();
-      a.row(2) = c.dir.transpose();
-      h[2] = c.dir.dot(centroid[t]);  // the point of the line nearest the bevel's centroid
-      c.p = a.partialPivLu().solve(h);
-    }
-    if (!c.p.allFinite()) continue;
-    const Vec3& p0 = verts[tris[t][0]];
-    const Vec3& p1 = verts[tris[t][1]];
-    const Vec3& p2 = verts[tris[t][2]];
-    const Vec3* corner[3] = {&p0, &p1, &p2};
-    // The sub-triangle over side k as a share of the bevel, both projected along the faces' mean
-    // normal: the barycentric weight of the opposite corner, affine along the line. Not along
-    // the bevel's own normal: a bevel cut far from the edge on one face and near it on the other
-    // is nearly parallel to the first, and along its normal the edge projects onto its rim on
-    // the second (the vertex was refused or clamped half-way).
-    Vec3 up = Vec3::Zero();
-    for (std::size_t i = 0; i < std::min<std::size_t>(sums.size(), c.corner ? 3 : 2); ++i)
-      up += sums[i].normal.normalized();
-    if (!(up.norm() > 0)) continue;
-    up.normalize();
-    const double projected = up.dot((p1 - p0).cross(p2 - p0));
-    if (!(projected > 0.2 * 2 * area[t])) continue;
-    auto weight = [&](int k, const Vec3& x) {
-      const Vec3& u = *corner[k];
-      const Vec3& w = *corner[(k + 1) % 3];
-      return up.dot((w - u).cross(x - u)) / projected;
-    };
-    if (!c.corner) {
-      // An edge: of the line's points over the bevel with every weight at least kInside, the
-      // one nearest the point over its centroid (the line crosses a bevel strip slantwise, and
-      // the point nearest the centroid may lie over a neighbour; taking the nearest rather than
-      // the middle keeps the new vertices of a strip in the order of its triangles).
-      double lo = -std::numeric_limits<double>::infinity(), hi = -lo;
-      bool outside = false;
-      for (int k = 0; k < 3; ++k) {
-        const double w0 = weight(k, c.p), slope = weight(k, c.p + c.dir) - w0;
-        if (std::abs(slope) < 1e-12) {
-          outside |= w0 < kInside;  // parallel to side k
-          continue;
-        }
-        const double s0 = (kInside - w0) / slope;
-        if (slope > 0) lo = std::max(lo, s0);
-        else hi = std::min(hi, s0);
-      }
-      if (outside || !(lo <= hi) || !std::isfinite(lo) || !std::isfinite(hi)) continue;
-      c.p += std::clamp(0.0, lo, hi) * c.dir;
-    }
-    // Over the bevel (its projection inside, away from the sides) and within a longest edge of
-    // its plane: farther, the faces' planes are no longer what the bevel cut.
-    const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
-    const double height = normal[t].dot(c.p - centroid[t]);
-    if (std::abs(height) > longest) continue;
-    if (weight(0, c.p) < kInside * 0.999 || weight(1, c.p) < kInside * 0.999 ||
-        weight(2, c.p) < kInside * 0.999)
-      continue;
-    c.ok = true;
-    cand[t] = c;
+    cand[t] = place_vertex(s, label, t, cos_feature, scratch);
   }
 
   // Apply the splits and flips of the bevels not refused; check the new triangles against the
@@ -492,85 +620,7 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
       }
     }
     if (conflict) continue;
-    // Tidy: a new vertex near a side of its bevel lies in the plane of the face beyond that
-    // side, and the triangle it makes over the side is a sliver in that plane. An edge of a new
-    // triangle (not one of the recovered line's, between two new vertices) is flipped to the
-    // other diagonal of its pair when the pair is flat (within the face angle), stays so, and
-    // gets a larger smallest angle. A face triangle so rewritten is checked with the new
-    // triangles and refused with its bevel.
-    const auto first_new = static_cast<std::uint32_t>(verts.size());
-    for (int sweep = 0; sweep < kTidySweeps; ++sweep) {
-      std::vector<std::pair<std::uint64_t, std::uint32_t>> half;
-      std::vector<char> listed(out.size(), 0);
-      auto list = [&](std::uint32_t i) {
-        if (listed[i]) return;
-        listed[i] = 1;
-        for (std::uint32_t k = 0; k < 3; ++k)
-          half.emplace_back(edge_key(out[i][k], out[i][(k + 1) % 3]), i);
-      };
-      // Every triangle at a corner of a new one (the input's at a measured corner, rewritten
-      // or not, and the new ones), so that a diagonal's absence is known.
-      for (std::uint32_t i = 0; i < out.size(); ++i)
-        if (origin[i] != kNone) {
-          list(i);
-          for (std::uint32_t c : out[i])
-            if (c < first_new)
-              for (std::uint32_t u : vt.of(c)) list(u);
-        }
-      std::sort(half.begin(), half.end());
-      auto find = [&](std::uint32_t a, std::uint32_t b) {
-        const auto it = std::lower_bound(half.begin(), half.end(),
-                                         std::make_pair(edge_key(a, b), std::uint32_t{0}));
-        return it != half.end() && it->first == edge_key(a, b) ? it->second : kNone;
-      };
-      auto min_angle_cos = [&](const Triangle& x) {  // cosine of the smallest angle
-        double worst = -1;
-        for (int k = 0; k < 3; ++k) {
-          const Vec3 e1 = v[x[(k + 1) % 3]] - v[x[k]], e2 = v[x[(k + 2) % 3]] - v[x[k]];
-          const double d = e1.norm() * e2.norm();
-          worst = std::max(worst, d > 0 ? e1.dot(e2) / d : 1.0);
-        }
-        return worst;
-      };
-      std::vector<char> touched(out.size(), 0);
-      std::vector<std::uint64_t> made;  // diagonals made in this sweep (undirected)
-      for (std::uint32_t i = 0; i < out.size(); ++i) {
-        if (origin[i] == kNone || touched[i]) continue;
-        for (std::uint32_t k = 0; k < 3 && !touched[i]; ++k) {
-          const std::uint32_t a = out[i][k], b = out[i][(k + 1) % 3], p = out[i][(k + 2) % 3];
-          if (a >= first_new && b >= first_new) continue;  // on the recovered line
-          const std::uint32_t j = find(b, a);
-          if (j == kNone || touched[j] || j == i) continue;
-          std::uint32_t q = kNone;
-          for (std::uint32_t c : out[j])
-            if (c != a && c != b) q = c;
-          if (q == kNone || q == p) continue;
-          const std::uint64_t diagonal = edge_key(std::min(p, q), std::max(p, q));
-          if (find(p, q) != kNone || find(q, p) != kNone ||
-              std::find(made.begin(), made.end(), diagonal) != made.end())
-            continue;
-          double ai = 0, aj = 0;
-          const Vec3 ni = unit_normal(v, out[i], &ai), nj = unit_normal(v, out[j], &aj);
-          if (ni.dot(nj) < cos_smooth) continue;
-          const Triangle x{p, a, q}, y{q, b, p};
-          double ax = 0, ay = 0;
-          const Vec3 pair = (ai * ni + aj * nj).normalized();
-          const Vec3 nx = unit_normal(v, x, &ax), ny = unit_normal(v, y, &ay);
-          if (!(ax > 0) || !(ay > 0) || nx.dot(pair) < cos_smooth || ny.dot(pair) < cos_smooth)
-            continue;
-          if (std::max(min_angle_cos(x), min_angle_cos(y)) >=
-              std::max(min_angle_cos(out[i]), min_angle_cos(out[j])))
-            continue;
-          out[i] = x;
-          out[j] = y;
-          if (origin[j] == kNone) origin[j] = origin[i];
-          touched[i] = touched[j] = 1;
-          made.push_back(diagonal);
-          ++st.tidied;
-        }
-      }
-      if (made.empty()) break;
-    }
+    tidy(s, cos_smooth, v, out, origin, st);
     // The new triangles last, so the check tests only pairs with one of them.
     std::vector<std::uint32_t> order;
     order.reserve(out.size());
