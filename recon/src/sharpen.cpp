@@ -33,6 +33,9 @@ constexpr double kCornerDet = 0.25;
 /// A face triangle's corner on another face is off its face's plane (see peel) only beyond this
 /// slope over the triangle's longest edge (about 3 degrees), whatever the plane's scatter.
 constexpr double kPeelSlope = 0.05;
+/// A bevel's corner must lie within this share of its longest edge of one of the face planes
+/// its new vertex comes from.
+constexpr double kOnFace = 0.3;
 /// Sweeps of the tidy step's flips (each flips a triangle at most once).
 constexpr int kTidySweeps = 4;
 /// Rounds of refusals (each refuses every bevel triangle whose new triangles crossed the mesh).
@@ -146,13 +149,13 @@ struct Surface {
     return std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
   }
   /// Appends to `out` the triangles within `rings` rings of triangle t's corners, each once
-  /// (stamp[u] == t marks those taken).
-  void rings_of(std::uint32_t t, int rings, std::vector<std::uint32_t>& stamp,
+  /// (stamp[u] == mark marks those taken; a mark is used for one call only).
+  void rings_of(std::uint32_t t, int rings, std::uint32_t mark, std::vector<std::uint32_t>& stamp,
                 std::vector<std::uint32_t>& out) const {
     for (std::uint32_t v : tris[t])
       for (std::uint32_t u : vt.of(v))
-        if (stamp[u] != t) {
-          stamp[u] = t;
+        if (stamp[u] != mark) {
+          stamp[u] = mark;
           out.push_back(u);
         }
     for (int r = 1, done = 0; r < rings; ++r) {
@@ -160,8 +163,8 @@ struct Surface {
       for (std::size_t i = static_cast<std::size_t>(done); i < first; ++i)
         for (std::uint32_t v : tris[out[i]])
           for (std::uint32_t u : vt.of(v))
-            if (stamp[u] != t) {
-              stamp[u] = t;
+            if (stamp[u] != mark) {
+              stamp[u] = mark;
               out.push_back(u);
             }
       done = static_cast<int>(first);
@@ -243,7 +246,7 @@ void peel_bevels(const Surface& s, double cos_feature, std::vector<std::uint32_t
   for (std::uint32_t t = 0; t < nt; ++t) {
     if (off[t] == kNone) continue;
     near.clear();
-    s.rings_of(t, 2, stamp, near);
+    s.rings_of(t, 2, t, stamp, near);
     Vec3 n = Vec3::Zero(), c = Vec3::Zero();
     double w = 0;
     // The plane from the face's triangles that touch no other face: the bevels that joined it
@@ -275,6 +278,7 @@ void peel_bevels(const Surface& s, double cos_feature, std::vector<std::uint32_t
 /// Scratch space of place_vertex, reused over the bevels.
 struct PlaceScratch {
   std::vector<std::uint32_t> stamp, ring;
+  std::uint32_t mark = 0;  ///< the last rings_of call's
   std::vector<FaceSum> sums, merged;
 };
 
@@ -285,7 +289,7 @@ void faces_near(const Surface& s, const std::vector<std::uint32_t>& label, std::
   std::vector<FaceSum>& sums = x.sums;
   sums.clear();
   x.ring.clear();
-  s.rings_of(t, rings, x.stamp, x.ring);
+  s.rings_of(t, rings, x.mark++, x.stamp, x.ring);
   for (std::uint32_t u : x.ring) {
     if (label[u] == kNone) continue;
     auto it = std::find_if(sums.begin(), sums.end(),
@@ -359,6 +363,18 @@ Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label
     c.p = a.partialPivLu().solve(h);
   }
   if (!c.p.allFinite()) return {};
+  // Every corner of a bevel is a sample of one of the faces it cuts between: a corner off all
+  // their planes means the faces are not the bevel's own (fandisk: a face seen two rings away,
+  // across a narrow face of its own, put vertices a spacing off the part).
+  const double on_face = kOnFace * s.longest_edge(t);
+  const std::size_t planes = c.corner ? 3 : 2;
+  for (std::uint32_t v : s.tris[t]) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < planes; ++i)
+      nearest = std::min(nearest, std::abs(a.row(static_cast<Eigen::Index>(i)).transpose().dot(verts[v]) -
+                                           h[static_cast<Eigen::Index>(i)]));
+    if (nearest > on_face) return {};
+  }
   const Vec3& p0 = verts[tris[t][0]];
   const Vec3& p1 = verts[tris[t][1]];
   const Vec3& p2 = verts[tris[t][2]];
