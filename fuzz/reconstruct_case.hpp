@@ -11,7 +11,7 @@
 //   shape 3: a height field and its copy 1/8-8/8 spacing below (a thin wall seen from both
 //            sides).
 // Option bits: 4 --cube none instead of auto, 8 the bulk off, 16 holes of up to 16 edges filled,
-// 32 the sensor directions (+z) given.
+// 32 the sensor directions (+z) given, 64 sharp edges recovered (--sharpen).
 //
 // Only scanmesh::Error (GeometryError for clouds that cannot make a surface) is an expected
 // outcome. Otherwise the output must keep the core's promises (reconstruct.hpp, recon/README
@@ -99,6 +99,7 @@ inline recon::ReconstructOptions case_options(std::uint8_t flags) {
   if ((flags & 4u) != 0) opt.cube_mode = recon::ReconstructOptions::CubeMode::kNone;
   if ((flags & 8u) != 0) opt.front.bulk = false;
   if ((flags & 16u) != 0) opt.fill.max_edges = 16;
+  if ((flags & 64u) != 0) opt.sharpen = true;
   return opt;
 }
 
@@ -124,8 +125,10 @@ inline std::string run_reconstruct_case(const std::uint8_t* data, std::size_t si
     if (rep.referenced_vertices != rep.vertices) return "unused vertices in the output";
     if (r.reduced_points > points.size()) return "more reduced points than input points";
     if (r.far_points > r.outliers.size()) return "more far points than outliers";
-    // Holes filled on request add vertices; every other vertex is a reduced point.
-    if (r.mesh.vertices.size() - r.fill.vertices + r.outliers.size() - r.far_points !=
+    // Holes filled and edges sharpened on request add vertices; every other vertex is a
+    // reduced point.
+    if (r.mesh.vertices.size() - r.fill.vertices - r.sharpen.edge_vertices -
+            r.sharpen.corner_vertices + r.outliers.size() - r.far_points !=
         r.reduced_points)
       return "reduced points neither vertices nor outliers";
     if (recon::find_self_intersections(r.mesh, 0).pairs != 0) return "crossing triangles";
