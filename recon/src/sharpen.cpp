@@ -227,6 +227,23 @@ std::vector<std::uint32_t> find_faces(const Surface& s, double cos_smooth) {
   return label;
 }
 
+/// For each face triangle, a corner of it that also belongs to another face (one whose triangle
+/// there lies at least the feature angle off), kNone for the others and the bevels: the face
+/// triangles along an edge.
+std::vector<std::uint32_t> corners_on_other_faces(const Surface& s,
+                                                  const std::vector<std::uint32_t>& label,
+                                                  double cos_feature) {
+  std::vector<std::uint32_t> off(s.size(), kNone);
+  for (std::uint32_t t = 0; t < s.size(); ++t) {
+    if (label[t] == kNone) continue;
+    for (std::uint32_t v : s.tris[t])
+      for (std::uint32_t u : s.vt.of(v))
+        if (label[u] != kNone && label[u] != label[t] && s.normal[u].dot(s.normal[t]) < cos_feature)
+          off[t] = v;
+  }
+  return off;
+}
+
 /// Bevels within the face angle of a face: a bevel cut 0.2 from the edge on one face and 1.1
 /// on the other lies 10 degrees off the second and joined it in find_faces. A face triangle with
 /// a corner on another face (one at least the feature angle off) is given back to the bevels
@@ -235,14 +252,7 @@ std::vector<std::uint32_t> find_faces(const Surface& s, double cos_smooth) {
 void peel_bevels(const Surface& s, double cos_feature, std::vector<std::uint32_t>& label) {
   const std::size_t nt = s.size();
   std::vector<std::uint32_t> peel, near, stamp(nt, kNone);
-  std::vector<std::uint32_t> off(nt, kNone);  // a corner that also belongs to another face
-  for (std::uint32_t t = 0; t < nt; ++t) {
-    if (label[t] == kNone) continue;
-    for (std::uint32_t v : s.tris[t])
-      for (std::uint32_t u : s.vt.of(v))
-        if (label[u] != kNone && label[u] != label[t] && s.normal[u].dot(s.normal[t]) < cos_feature)
-          off[t] = v;
-  }
+  const std::vector<std::uint32_t> off = corners_on_other_faces(s, label, cos_feature);
   for (std::uint32_t t = 0; t < nt; ++t) {
     if (off[t] == kNone) continue;
     near.clear();
@@ -278,6 +288,7 @@ void peel_bevels(const Surface& s, double cos_feature, std::vector<std::uint32_t
 /// Scratch space of place_vertex, reused over the bevels.
 struct PlaceScratch {
   std::vector<std::uint32_t> stamp, ring;
+  std::vector<std::uint32_t> off;  ///< corners_on_other_faces of the final faces
   std::uint32_t mark = 0;  ///< the last rings_of call's
   std::vector<FaceSum> sums, merged;
 };
@@ -292,6 +303,10 @@ void faces_near(const Surface& s, const std::vector<std::uint32_t>& label, std::
   s.rings_of(t, rings, x.mark++, x.stamp, x.ring);
   for (std::uint32_t u : x.ring) {
     if (label[u] == kNone) continue;
+    // A face's plane from its triangles that touch no other face: those that do lie along the
+    // edge, where a bevel within the face angle joined it and tilts it (a cylinder's side
+    // below its rim: its vertices 0.15-0.4 inside the rim).
+    if (x.off[u] != kNone) continue;
     auto it = std::find_if(sums.begin(), sums.end(),
                            [&](const FaceSum& f) { return f.label == label[u]; });
     if (it == sums.end()) {
@@ -535,6 +550,7 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
   if (options.peel) peel_bevels(s, cos_feature, label);
   PlaceScratch scratch;
   scratch.stamp.assign(nt, kNone);
+  scratch.off = corners_on_other_faces(s, label, cos_feature);
   std::vector<Candidate> cand(nt);
   std::vector<std::uint32_t> bevels;
   for (std::uint32_t t = 0; t < nt; ++t) {
