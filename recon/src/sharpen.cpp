@@ -36,6 +36,8 @@ constexpr double kPeelSlope = 0.05;
 /// A bevel's corner must lie within this share of its longest edge of one of the face planes
 /// its new vertex comes from.
 constexpr double kOnFace = 0.3;
+/// The same for a corner none of whose triangles belongs to those faces.
+constexpr double kFacelessOnFace = 0.1;
 /// Sweeps of the tidy step's flips (each flips a triangle at most once).
 constexpr int kTidySweeps = 4;
 /// Rounds of refusals (each refuses every bevel triangle whose new triangles crossed the mesh).
@@ -342,7 +344,7 @@ void faces_near(const Surface& s, const std::vector<std::uint32_t>& label, std::
 /// Bevel t's new vertex from the faces around its corners (their triangles within one ring, two
 /// when one ring shows a single face); ok false when none fits.
 Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label, std::uint32_t t,
-                       double cos_feature, PlaceScratch& x) {
+                       double cos_feature, double cos_member, PlaceScratch& x) {
   const std::vector<FaceSum>& sums = x.sums;
   faces_near(s, label, t, 1, cos_feature, x);
   if (sums.size() < 2) faces_near(s, label, t, 2, cos_feature, x);
@@ -389,6 +391,26 @@ Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label
       nearest = std::min(nearest, std::abs(a.row(static_cast<Eigen::Index>(i)).transpose().dot(verts[v]) -
                                            h[static_cast<Eigen::Index>(i)]));
     if (nearest > on_face) return {};
+  }
+  // Every corner of a bevel cut across an edge is a sample of one of its faces: it has a
+  // triangle of that face (within twice the face angle of its plane) or, all its triangles
+  // bevels, it lies near the plane (a sample near the edge). A corner with neither lies on a
+  // rounded blend between the faces (a fillet sampled across, its middle rows off both
+  // planes): there the planes' meeting point is not the part's; it stands off a fillet by 0.41
+  // of its radius.
+  const double faceless_on = kFacelessOnFace * s.longest_edge(t);
+  for (std::uint32_t v : s.tris[t]) {
+    bool on = false;
+    for (std::uint32_t u : s.vt.of(v)) {
+      if (label[u] == kNone) continue;
+      for (std::size_t i = 0; i < planes && !on; ++i)
+        on = a.row(static_cast<Eigen::Index>(i)).dot(s.normal[u].transpose()) >= cos_member;
+      if (on) break;
+    }
+    for (std::size_t i = 0; i < planes && !on; ++i)
+      on = std::abs(a.row(static_cast<Eigen::Index>(i)).dot(verts[v].transpose()) -
+                    h[static_cast<Eigen::Index>(i)]) <= faceless_on;
+    if (!on) return {};
   }
   const Vec3& p0 = verts[tris[t][0]];
   const Vec3& p1 = verts[tris[t][1]];
@@ -545,6 +567,7 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
   const std::vector<Vec3>& centroid = s.centroid;
   const double cos_smooth = cos_deg(options.smooth_deg);
   const double cos_feature = cos_deg(options.feature_deg);
+  const double cos_member = cos_deg(std::min(2 * options.smooth_deg, options.feature_deg));
 
   std::vector<std::uint32_t> label = find_faces(s, cos_smooth);
   if (options.peel) peel_bevels(s, cos_feature, label);
@@ -557,7 +580,7 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
     if (label[t] != kNone || s.degenerate(t)) continue;
     bevels.push_back(t);
     ++stats.bevel_triangles;
-    cand[t] = place_vertex(s, label, t, cos_feature, scratch);
+    cand[t] = place_vertex(s, label, t, cos_feature, cos_member, scratch);
   }
 
   // Apply the splits and flips of the bevels not refused; check the new triangles against the

@@ -7,6 +7,8 @@
 // over the bevel as seen along the faces' mean normal (a bevel cut off-centre is nearly parallel
 // to one face); edges between two such vertices are flipped so that the recovered edge runs
 // through them, and the slivers a new vertex near a face makes are flipped away within it.
+// A rounded edge (a fillet sampled across: bevel corners that belong to neither face and lie
+// off both planes) is left round.
 // Pure: no I/O, no globals.
 // SPDX-License-Identifier: MIT
 #pragma once
