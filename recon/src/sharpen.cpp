@@ -380,37 +380,33 @@ Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label
     c.p = a.partialPivLu().solve(h);
   }
   if (!c.p.allFinite()) return {};
-  // Every corner of a bevel is a sample of one of the faces it cuts between: a corner off all
+  // Every corner of a bevel is a sample of one of the faces it cuts between. A corner off all
   // their planes means the faces are not the bevel's own (fandisk: a face seen two rings away,
-  // across a narrow face of its own, put vertices a spacing off the part).
+  // across a narrow face of its own, put vertices a spacing off the part). And a corner is a
+  // face's sample when it has a triangle of that face (within twice the face angle of its
+  // plane) or, all its triangles bevels, lies near the plane (a sample near the edge). A
+  // corner with neither lies on a rounded blend between the faces (a fillet sampled across,
+  // its middle rows off both planes): there the planes' meeting point is not the part's; it
+  // stands off a fillet by 0.41 of its radius.
   const double on_face = kOnFace * s.longest_edge(t);
+  const double faceless_on = kFacelessOnFace * s.longest_edge(t);
   const std::size_t planes = c.corner ? 3 : 2;
   for (std::uint32_t v : s.tris[t]) {
     double nearest = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < planes; ++i)
-      nearest = std::min(nearest, std::abs(a.row(static_cast<Eigen::Index>(i)).transpose().dot(verts[v]) -
-                                           h[static_cast<Eigen::Index>(i)]));
-    if (nearest > on_face) return {};
-  }
-  // Every corner of a bevel cut across an edge is a sample of one of its faces: it has a
-  // triangle of that face (within twice the face angle of its plane) or, all its triangles
-  // bevels, it lies near the plane (a sample near the edge). A corner with neither lies on a
-  // rounded blend between the faces (a fillet sampled across, its middle rows off both
-  // planes): there the planes' meeting point is not the part's; it stands off a fillet by 0.41
-  // of its radius.
-  const double faceless_on = kFacelessOnFace * s.longest_edge(t);
-  for (std::uint32_t v : s.tris[t]) {
-    bool on = false;
-    for (std::uint32_t u : s.vt.of(v)) {
-      if (label[u] == kNone) continue;
-      for (std::size_t i = 0; i < planes && !on; ++i)
-        on = a.row(static_cast<Eigen::Index>(i)).dot(s.normal[u].transpose()) >= cos_member;
-      if (on) break;
+    for (std::size_t i = 0; i < planes; ++i) {
+      const auto row = static_cast<Eigen::Index>(i);
+      nearest = std::min(nearest, std::abs(a.row(row).dot(verts[v].transpose()) - h[row]));
     }
-    for (std::size_t i = 0; i < planes && !on; ++i)
-      on = std::abs(a.row(static_cast<Eigen::Index>(i)).dot(verts[v].transpose()) -
-                    h[static_cast<Eigen::Index>(i)]) <= faceless_on;
-    if (!on) return {};
+    if (nearest > on_face) return {};
+    if (nearest <= faceless_on) continue;
+    const bool member = std::any_of(s.vt.of(v).begin(), s.vt.of(v).end(), [&](std::uint32_t u) {
+      if (label[u] == kNone) return false;
+      for (std::size_t i = 0; i < planes; ++i)
+        if (a.row(static_cast<Eigen::Index>(i)).dot(s.normal[u].transpose()) >= cos_member)
+          return true;
+      return false;
+    });
+    if (!member) return {};
   }
   const Vec3& p0 = verts[tris[t][0]];
   const Vec3& p1 = verts[tris[t][1]];
