@@ -323,7 +323,8 @@ int run_reconstruct(const ReconstructArgs& args) {
       std::cout << "sharpened        " << res.sharpen.edge_vertices << " vertices on edges, "
                 << res.sharpen.corner_vertices << " at corners (" << res.sharpen.bevel_triangles
                 << " bevel triangles, " << res.sharpen.refused
-                << " left as they were: a new vertex would cross or fold)\n";
+                << " left as they were: a new vertex would cross or fold; "
+                << res.sharpen.rounded << " on fillets, left round)\n";
     std::cout
               << "outliers         " << res.outliers.size()
               << (res.far_points > 0 ? " (" + std::to_string(res.far_points) +

@@ -60,6 +60,8 @@ int run_sharpen(const SharpenArgs& args) {
               << " edges flipped along them, " << stats.tidied
               << " slivers beside the faces flipped away; " << stats.refused
               << " refused: they would cross or fold)\n"
+              << "left round       " << stats.rounded
+              << " bevel triangles on fillets (a corner on neither face, off both planes)\n"
               << "vertices         " << mesh.vertices.size() << "\n"
               << "triangles        " << mesh.triangles.size() << "\n"
               << "boundary loops   " << after.boundary_loops << "\n"

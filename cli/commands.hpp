@@ -85,6 +85,7 @@ inline void put_sharpen(nlohmann::json& j, const recon::SharpenStats& s) {
   j["flipped_edges"] = s.flipped;
   j["refused_bevels"] = s.refused;
   j["tidied_edges"] = s.tidied;
+  j["rounded_bevels"] = s.rounded;
 }
 
 /// Reads the mesh a command works on (fill, sharpen): a file of vertices only (a point cloud)

@@ -90,6 +90,7 @@ struct FaceSum {
 struct Candidate {
   bool ok = false;
   bool corner = false;
+  bool rounded = false;  ///< refused: a corner of the bevel lies on a fillet (see place_vertex)
   Vec3 p = Vec3::Zero();
   Vec3 dir = Vec3::Zero();  ///< the recovered edge's direction (edges only)
 };
@@ -406,7 +407,11 @@ Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label
           return true;
       return false;
     });
-    if (!member) return {};
+    if (!member) {
+      Candidate rounded;
+      rounded.rounded = true;
+      return rounded;
+    }
   }
   const Vec3& p0 = verts[tris[t][0]];
   const Vec3& p1 = verts[tris[t][1]];
@@ -577,6 +582,7 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
     bevels.push_back(t);
     ++stats.bevel_triangles;
     cand[t] = place_vertex(s, label, t, cos_feature, cos_member, scratch);
+    stats.rounded += cand[t].rounded ? 1 : 0;
   }
 
   // Apply the splits and flips of the bevels not refused; check the new triangles against the
@@ -606,6 +612,7 @@ SharpenStats sharpen_pass(Mesh& mesh, const SharpenOptions& options) {
     }
     SharpenStats st;
     st.bevel_triangles = stats.bevel_triangles;
+    st.rounded = stats.rounded;
     for (std::uint32_t t : bevels) {
       if (!split[t]) continue;
       const auto p = static_cast<std::uint32_t>(v.size());
@@ -719,6 +726,7 @@ SharpenStats sharpen_edges(Mesh& mesh, const SharpenOptions& options) {
     total.flipped += st.flipped;
     total.tidied += st.tidied;
     total.refused = st.refused;
+    total.rounded += st.rounded;
     if (st.edge_vertices + st.corner_vertices == 0) break;
   }
   return total;

@@ -1325,6 +1325,7 @@ TEST_CASE("sharpen and reconstruct --sharpen put a scanned box's edges back; bad
   CHECK(sharp.contains("corner_vertices"));
   CHECK(sharp.contains("refused_bevels"));
   CHECK(sharp.contains("tidied_edges"));
+  CHECK(sharp.at("rounded_bevels") == 0);  // a box: no fillet
   CHECK(sharp.at("boundary_loops") == 0);
   CHECK(sharp.at("genus") == 0);
   CHECK(sharp.at("vertices").get<std::size_t>() ==

@@ -294,9 +294,11 @@ TEST_CASE("sharpen: fillets are left round, the sharp rims beside them recovered
       on_fillets += p.z() > kStep && p.z() < kSide - kStep ? 1 : 0;
     }
     INFO("edge vertices " << st.edge_vertices << ", corners " << st.corner_vertices
-                          << ", refused " << st.refused << "; on the fillets " << on_fillets
+                          << ", refused " << st.refused << ", left round " << st.rounded
+                          << "; on the fillets " << on_fillets
                           << ", farthest new vertex " << worst);
     CHECK(on_fillets == 0);
+    CHECK(st.rounded > 0);
     CHECK(worst < 0.1 * kStep);
     // The rims: two rounded squares, about 4 * 8 straight steps each, are recovered.
     CHECK(st.edge_vertices > 2 * 4 * static_cast<std::size_t>((kSide - 2 * r) / kStep));

@@ -52,6 +52,10 @@ struct SharpenStats {
   /// cross the mesh or fold onto a neighbour (in the last pass; bevel_triangles counts the
   /// first's, the other fields are summed over the passes).
   std::size_t refused = 0;
+  /// Bevel triangles left as they are because one of their corners lies on a rounded blend
+  /// between the faces (a fillet sampled across: it belongs to neither face and lies off both
+  /// planes), summed over the passes.
+  std::size_t rounded = 0;
 };
 
 /// Recovers the sharp edges and corners that `mesh` bevels (see above). Each new vertex is
