@@ -175,6 +175,13 @@ struct Surface {
   }
 };
 
+/// Adds triangle u to a face's area-weighted sums of normals and centroids.
+void add_triangle(FaceSum& f, const Surface& s, std::uint32_t u) {
+  f.normal += s.area[u] * s.normal[u];
+  f.centroid += s.area[u] * s.centroid[u];
+  f.area += s.area[u];
+}
+
 /// Faces: the triangles all of whose edges are smooth (normals within the face angle), joined
 /// through smooth edges; then each triangle of no face joins the face of its most parallel
 /// neighbour when it is within the face angle of it (twice: the triangles along a face's rim
@@ -260,19 +267,14 @@ void peel_bevels(const Surface& s, double cos_feature, std::vector<std::uint32_t
     if (off[t] == kNone) continue;
     near.clear();
     s.rings_of(t, 2, t, stamp, near);
-    Vec3 n = Vec3::Zero(), c = Vec3::Zero();
-    double w = 0;
     // The plane from the face's triangles that touch no other face: the bevels that joined it
     // would tilt it towards themselves.
+    FaceSum plane{label[t], Vec3::Zero(), Vec3::Zero(), 0};
     for (std::uint32_t u : near)
-      if (label[u] == label[t] && off[u] == kNone) {
-        n += s.area[u] * s.normal[u];
-        c += s.area[u] * s.centroid[u];
-        w += s.area[u];
-      }
-    if (!(w > 0) || !(n.norm() > 0)) continue;
-    n.normalize();
-    c /= w;
+      if (label[u] == label[t] && off[u] == kNone) add_triangle(plane, s, u);
+    if (!(plane.area > 0) || !(plane.normal.norm() > 0)) continue;
+    const Vec3 n = plane.normal.normalized();
+    const Vec3 c = plane.centroid / plane.area;
     double sq = 0, count = 0;
     for (std::uint32_t u : near)
       if (label[u] == label[t] && off[u] == kNone)
@@ -316,9 +318,7 @@ void faces_near(const Surface& s, const std::vector<std::uint32_t>& label, std::
       sums.push_back({label[u], Vec3::Zero(), Vec3::Zero(), 0});
       it = sums.end() - 1;
     }
-    it->normal += s.area[u] * s.normal[u];
-    it->centroid += s.area[u] * s.centroid[u];
-    it->area += s.area[u];
+    add_triangle(*it, s, u);
   }
   // Faces within the feature angle of a larger one are the same face for this purpose.
   std::stable_sort(sums.begin(), sums.end(),
@@ -389,8 +389,9 @@ Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label
   // corner with neither lies on a rounded blend between the faces (a fillet sampled across,
   // its middle rows off both planes): there the planes' meeting point is not the part's; it
   // stands off a fillet by 0.41 of its radius.
-  const double on_face = kOnFace * s.longest_edge(t);
-  const double faceless_on = kFacelessOnFace * s.longest_edge(t);
+  const double longest = s.longest_edge(t);
+  const double on_face = kOnFace * longest;
+  const double faceless_on = kFacelessOnFace * longest;
   const std::size_t planes = c.corner ? 3 : 2;
   for (std::uint32_t v : s.tris[t]) {
     double nearest = std::numeric_limits<double>::infinity();
@@ -423,8 +424,7 @@ Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label
   // is nearly parallel to the first, and along its normal the edge projects onto its rim on
   // the second (the vertex was refused or clamped half-way).
   Vec3 up = Vec3::Zero();
-  for (std::size_t i = 0; i < std::min<std::size_t>(sums.size(), c.corner ? 3 : 2); ++i)
-    up += sums[i].normal.normalized();
+  for (std::size_t i = 0; i < planes; ++i) up += a.row(static_cast<Eigen::Index>(i)).transpose();
   if (!(up.norm() > 0)) return {};
   up.normalize();
   const double projected = up.dot((p1 - p0).cross(p2 - p0));
@@ -456,7 +456,6 @@ Candidate place_vertex(const Surface& s, const std::vector<std::uint32_t>& label
   }
   // Over the bevel (its projection inside, away from the sides) and within a longest edge of
   // its plane: farther, the faces' planes are no longer what the bevel cut.
-  const double longest = s.longest_edge(t);
   const double height = s.normal[t].dot(c.p - s.centroid[t]);
   if (std::abs(height) > longest) return {};
   if (weight(0, c.p) < kInside * 0.999 || weight(1, c.p) < kInside * 0.999 ||
