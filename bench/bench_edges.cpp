@@ -19,6 +19,7 @@
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "scanmesh/recon/sharpen.hpp"
+#include "scanmesh/recon/denoise.hpp"
 #include "scanmesh/sim/parts.hpp"
 #include "sim_scan.hpp"
 
@@ -85,6 +86,7 @@ std::size_t below_10(const recon::MeshReport& r) {
 int main(int argc, char** argv) {
   int seeds = 2;
   recon::SharpenOptions options;
+  bool denoise = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--seeds" && i + 1 < argc) {
@@ -95,13 +97,16 @@ int main(int argc, char** argv) {
       options.feature_deg = std::atof(argv[++i]);
     } else if (a == "--passes" && i + 1 < argc) {
       options.passes = std::atoi(argv[++i]);
+    } else if (a == "--denoise") {
+      denoise = true;
     } else if (a == "--no-peel") {
       options.peel = false;
     } else {
       std::fprintf(stderr,
                    "usage: %s [--seeds N] [--face-angle DEG] [--feature-angle DEG] [--passes N]\n"
-                   "          [--no-peel]\n"
-                   "  seeds 1..N per part and mode (default 2); the angles as scanmesh sharpen's\n",
+                   "          [--no-peel] [--denoise]\n"
+                   "  seeds 1..N per part and mode (default 2); the angles as scanmesh sharpen's;\n"
+                   "  --denoise: the noise removed first (denoise_mesh, defaults)\n",
                    argv[0]);
       return a == "--help" || a == "-h" ? 0 : 2;
     }
@@ -119,9 +124,10 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "bench_edges: build type %s; noise %.2f mm, dropout %.2f; seeds 1..%d; face angle %g, "
-      "feature angle %g degrees, %d pass(es), peeling %s\n",
+      "feature angle %g degrees, %d pass(es), peeling %s%s\n",
       SCANMESH_BENCH_BUILD_TYPE, imp.noise_mm, imp.dropout, seeds, options.smooth_deg,
-      options.feature_deg, options.passes, options.peel ? "on" : "off");
+      options.feature_deg, options.passes, options.peel ? "on" : "off",
+      denoise ? "; the noise removed first" : "");
   std::printf(
       "edge: distance from the part's sharp edges (the points seen) to the mesh, before -> "
       "after sharpening (mean, p95, max); m->r: mesh to part after (mean, max); new: edge + "
@@ -144,6 +150,7 @@ int main(int argc, char** argv) {
           const recon::ReconstructResult r = recon::reconstruct(points, recon::ReconstructOptions{});
           recon::Mesh sharp = r.mesh;
           const auto t0 = std::chrono::steady_clock::now();
+          if (denoise) recon::denoise_mesh(sharp);
           const recon::SharpenStats st = recon::sharpen_edges(sharp, options);
           const double ms =
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)

@@ -40,6 +40,8 @@ struct ReconstructArgs {
   std::size_t fill_holes = 0;
   double fill_width = 0;
   bool fill_flat = false;
+  bool denoise = false;
+  recon::DenoiseOptions denoise_options;
   bool sharpen = false;
   recon::SharpenOptions sharpen_options;
   std::string preview;
@@ -153,6 +155,8 @@ int run_reconstruct(const ReconstructArgs& args) {
   // A width alone closes every loop under it, whatever its edge count (up to the limit).
   if (args.fill_width > 0 && args.fill_holes == 0) opt.fill.max_edges = recon::FillOptions::kLimit;
   opt.fill.refine = !args.fill_flat;
+  opt.denoise = args.denoise;
+  opt.denoise_options = args.denoise_options;
   opt.sharpen = args.sharpen;
   opt.sharpen_options = args.sharpen_options;
   if (args.inputs.empty() && args.conf.empty())
@@ -271,6 +275,7 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["refine_flips"] = res.refine.flips;
     j["sliver_flips"] = res.refine.sliver_flips;
     put_fill(j, res.fill);
+    if (opt.denoise) put_denoise(j, res.denoise);
     if (opt.sharpen) put_sharpen(j, res.sharpen);
     j["edge_evaluations"] = res.edge_evaluations;
     j["points_scanned"] = res.points_scanned;
@@ -319,6 +324,11 @@ int run_reconstruct(const ReconstructArgs& args) {
                 << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept
                 << " loops kept, " << res.fill.crossing
                 << " of them because a patch would cross the mesh)\n";
+    if (opt.denoise)
+      std::cout << "denoised         " << res.denoise.moved << " vertices moved, "
+                << res.denoise.mean_move << " on average (noise " << res.denoise.noise_deg
+                << " deg between neighbouring triangles; " << res.denoise.refused
+                << " left: a move would fold or cross)\n";
     if (opt.sharpen)
       std::cout << "sharpened        " << res.sharpen.edge_vertices << " vertices on edges, "
                 << res.sharpen.corner_vertices << " at corners (" << res.sharpen.bevel_triangles
@@ -396,6 +406,10 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   cmd->add_flag("--fill-flat", args->fill_flat,
                 "with --fill-holes or --fill-width: patch each hole with triangles of its "
                 "rim's vertices only (no new vertex, no fairing)");
+  cmd->add_flag("--denoise", args->denoise,
+                "remove the scan's noise, keeping the sharp edges: filtered triangle normals, "
+                "the vertices fitted to them (as `scanmesh denoise`; before --sharpen)");
+  add_denoise_options(*cmd, args->denoise_options, "with --denoise: ");
   cmd->add_flag("--sharpen", args->sharpen,
                 "recover the sharp edges and corners the scan bevelled: new vertices where the "
                 "faces meet (as `scanmesh sharpen`)");

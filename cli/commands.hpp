@@ -12,6 +12,7 @@
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/denoise.hpp"
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/sharpen.hpp"
 #include "scanmesh/meshio/meshio.hpp"
@@ -88,6 +89,17 @@ inline void put_sharpen(nlohmann::json& j, const recon::SharpenStats& s) {
   j["rounded_bevels"] = s.rounded;
 }
 
+/// The noise-removal fields `denoise --json` and `reconstruct --denoise --json` report.
+inline void put_denoise(nlohmann::json& j, const recon::DenoiseStats& s) {
+  j["denoised_vertices"] = s.moved;
+  j["denoise_refused"] = s.refused;
+  j["denoise_clamped"] = s.clamped;
+  j["denoise_mean_move"] = s.mean_move;
+  j["denoise_max_move"] = s.max_move;
+  j["denoise_noise_deg"] = s.noise_deg;
+  j["denoise_feature_deg"] = s.feature_deg;
+}
+
 /// Reads the mesh a command works on (fill, sharpen): a file of vertices only (a point cloud)
 /// is refused, naming the command that meshes it.
 inline recon::Mesh read_triangle_mesh(const std::string& file) {
@@ -117,6 +129,10 @@ void add_fill_command(CLI::App& app, Runner& run);
 void add_sharpen_command(CLI::App& app, Runner& run);
 /// --face-angle and --feature-angle on `cmd`, help lines prefixed by `when`.
 void add_sharpen_options(CLI::App& cmd, recon::SharpenOptions& options, const std::string& when);
+void add_denoise_command(CLI::App& app, Runner& run);
+/// --denoise-angle, --normal-iterations and --vertex-iterations on `cmd`, help lines prefixed
+/// by `when`.
+void add_denoise_options(CLI::App& cmd, recon::DenoiseOptions& options, const std::string& when);
 void add_deviation_command(CLI::App& app, Runner& run);
 void add_generate_command(CLI::App& app, Runner& run);
 void add_simulate_command(CLI::App&, Runner&);

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   cli::add_inspect_command(app, run);
   cli::add_fill_command(app, run);
   cli::add_sharpen_command(app, run);
+  cli::add_denoise_command(app, run);
   cli::add_deviation_command(app, run);
   cli::add_generate_command(app, run);
   cli::add_simulate_command(app, run);

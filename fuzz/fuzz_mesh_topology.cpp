@@ -2,10 +2,11 @@
 // run on meshes from outside: a mesh parsed from the bytes (first byte: OBJ, ASCII/binary STL or
 // PLY; next bits of that byte: flat patches or refined and faired ones, and whether only loops
 // short for a spacing from the second byte are closed, and whether only loops at most as wide
-// as a size from the third byte are) goes through analyze(), sharpen_edges(), fill_holes(),
+// as a size from the third byte are) goes through analyze(), sharpen_edges(), denoise_mesh(), fill_holes(),
 // untangle_gaps() and find_self_intersections(). Only scanmesh::Error is an expected outcome; a
 // manifold, consistently oriented input must stay so after sharpening (of the same topology,
-// without crossings when it had none), filling and untangling, with each
+// without crossings when it had none), denoising (the same triangles, finite vertices, no
+// crossing), filling and untangling, with each
 // filled loop gone, the added vertices counted, the existing ones unmoved, and no crossing added
 // by a patch.
 // SPDX-License-Identifier: MIT
@@ -19,6 +20,7 @@
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/denoise.hpp"
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/sharpen.hpp"
@@ -68,6 +70,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           r.boundary_loops != before.boundary_loops || r.components != before.components ||
           r.genus != before.genus || recon::find_self_intersections(sharp, 0).pairs != 0)
         __builtin_trap();
+      // Noise removal on a copy: only vertices move, to finite places, and nothing crosses.
+      recon::Mesh smooth = mesh;
+      recon::DenoiseOptions dn;
+      dn.feature_deg = (data[0] / 6) % 2 == 1 ? 30 : 0;  // fixed, or from the mesh's own scatter
+      const recon::DenoiseStats ds = recon::denoise_mesh(smooth, dn);
+      if (smooth.triangles != mesh.triangles || smooth.vertices.size() != mesh.vertices.size() ||
+          ds.moved + ds.refused > mesh.vertices.size() ||
+          recon::find_self_intersections(smooth, 0).pairs != 0)
+        __builtin_trap();
+      for (std::size_t v = 0; v < smooth.vertices.size(); ++v)
+        if (!smooth.vertices[v].allFinite() && mesh.vertices[v].allFinite()) __builtin_trap();
     }
     recon::FillOptions opt;
     opt.max_edges = 64;

@@ -178,6 +178,8 @@ std::vector<std::string> ReconstructOptions::validate() const {
   std::vector<std::string> errors = front.validate();
   for (auto& e : refine.validate()) errors.push_back(std::move(e));
   for (auto& e : fill.validate()) errors.push_back(std::move(e));
+  if (denoise)
+    for (auto& e : denoise_options.validate()) errors.push_back(std::move(e));
   if (sharpen)
     for (auto& e : sharpen_options.validate()) errors.push_back(std::move(e));
   if (cube_mode == CubeMode::kFixed && !(cube_mm > 0 && std::isfinite(cube_mm)))
@@ -439,6 +441,11 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
     res.peeled_chords = detail::peel_border_chords(res.mesh, options.peel_apex_deg);
   // Before the fill, whose patches then continue the recovered faces and stay the last
   // triangles (sharpening moves the triangles it changes to the end).
+  // The noise first: the faces the edge recovery extends are then flat.
+  if (options.denoise) {
+    stage("denoise");
+    res.denoise = denoise_mesh(res.mesh, options.denoise_options);
+  }
   if (options.sharpen) {
     stage("sharpen");
     res.sharpen = sharpen_edges(res.mesh, options.sharpen_options);

@@ -1375,3 +1375,97 @@ TEST_CASE("sharpen and reconstruct --sharpen put a scanned box's edges back; bad
   CHECK(r.err.find("no triangles") != std::string::npos);
   CHECK(!fs::exists(dir / "bad.ply"));
 }
+
+TEST_CASE("denoise and reconstruct --denoise flatten a noisy box's faces; only vertices move; "
+          "bad options, point clouds and non-manifold meshes are refused, nothing written",
+          "[cli]") {
+  TempDir dir;
+  // A 10 mm box sampled every 0.5 mm with 0.02 mm of noise (seeded).
+  std::vector<scanmesh::recon::Vec3> points;
+  for (int axis = 0; axis < 3; ++axis)
+    for (const double side : {0.0, 10.0})
+      for (int i = 0; i < 20; ++i)
+        for (int j = 0; j < 20; ++j) {
+          scanmesh::recon::Vec3 p;
+          p[axis] = side;
+          p[(axis + 1) % 3] = (i + 0.5) * 0.5;
+          p[(axis + 2) % 3] = (j + 0.5) * 0.5;
+          points.push_back(p);
+        }
+  scanmesh::test::add_noise(points, 0.02, 9);
+  const fs::path cloud = dir / "box.xyz";
+  std::string text;
+  char line[96];
+  for (const auto& p : points) {
+    std::snprintf(line, sizeof line, "%.6f %.6f %.6f\n", p.x(), p.y(), p.z());
+    text += line;
+  }
+  spit(cloud, text);
+  // Distance of the mesh's vertices to the box's faces, root mean square.
+  auto rms = [](const scanmesh::recon::Mesh& m) {
+    double s = 0;
+    for (const auto& v : m.vertices) {
+      const scanmesh::recon::Vec3 q = (v - scanmesh::recon::Vec3::Constant(5)).cwiseAbs();
+      const double d = 5 - q.maxCoeff();
+      s += d * d;
+    }
+    return std::sqrt(s / static_cast<double>(m.vertices.size()));
+  };
+  auto r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "plain.ply").string(), "--json",
+                     "--cube", "none"});
+  REQUIRE(r.status == 0);
+  CHECK(!json_of(r).contains("denoised_vertices"));  // only on request
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "smooth.ply").string(), "--json",
+                "--cube", "none", "--denoise"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json smooth = json_of(r);
+  CHECK(smooth.at("denoised_vertices").get<std::size_t>() > 2000);
+  CHECK(smooth.contains("denoise_refused"));
+  CHECK(smooth.contains("denoise_clamped"));
+  CHECK(smooth.at("denoise_mean_move").get<double>() > 0);
+  CHECK(smooth.at("denoise_max_move").get<double>() < 0.25);  // half an edge at most
+  CHECK(smooth.at("denoise_noise_deg").get<double>() > 1);
+  CHECK(smooth.at("denoise_feature_deg").get<double>() ==
+        Approx(2 * smooth.at("denoise_noise_deg").get<double>()));
+  CHECK(smooth.at("step_seconds").is_object());
+  const auto plain = scanmesh::meshio::read_mesh(dir / "plain.ply");
+  const auto denoised = scanmesh::meshio::read_mesh(dir / "smooth.ply");
+  CHECK(denoised.triangles == plain.triangles);
+  CHECK(rms(denoised) < 0.5 * rms(plain));
+
+  // The same on the mesh written without it: the same figures; the text summary says it.
+  r = run(dir, {"denoise", (dir / "plain.ply").string(), "-o", (dir / "later.stl").string(),
+                "--json"});
+  INFO(describe(r));
+  REQUIRE(r.status == 0);
+  const json later = json_of(r);
+  CHECK(later.at("denoised_vertices") == smooth.at("denoised_vertices"));
+  CHECK(later.at("boundary_loops") == 0);
+  CHECK(later.at("genus") == 0);
+  CHECK(later.at("orientation_consistent") == true);
+  r = run(dir, {"denoise", (dir / "plain.ply").string(), "-o", (dir / "text.ply").string(),
+                "--denoise-angle", "5", "--normal-iterations", "2", "--vertex-iterations", "5"});
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("moved") && Catch::Contains("written"));
+
+  // Usage errors: exit 2, the flag named, nothing written.
+  r = run(dir, {"denoise", (dir / "plain.ply").string(), "-o", (dir / "bad.ply").string(),
+                "--denoise-angle", "95"});
+  CHECK(r.status == 2);
+  CHECK(r.err.find("feature angle") != std::string::npos);
+  r = run(dir, {"reconstruct", cloud.string(), "-o", (dir / "bad.ply").string(), "--denoise",
+                "--normal-iterations", "0"});
+  CHECK(r.status == 2);
+  CHECK(r.err.find("--normal-iterations") != std::string::npos);
+  // A point cloud, a non-manifold mesh: exit 3, the file named.
+  spit(dir / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+  r = run(dir, {"denoise", (dir / "points.obj").string(), "-o", (dir / "bad.ply").string()});
+  CHECK(r.status == 3);
+  CHECK(r.err.find("no triangles") != std::string::npos);
+  spit(dir / "fin.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n");
+  r = run(dir, {"denoise", (dir / "fin.obj").string(), "-o", (dir / "bad.ply").string()});
+  CHECK(r.status == 3);
+  CHECK_THAT(r.err, Catch::Contains("fin.obj") && Catch::Contains("non-manifold"));
+  CHECK(!fs::exists(dir / "bad.ply"));
+}

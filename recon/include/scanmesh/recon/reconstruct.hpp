@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "scanmesh/recon/denoise.hpp"
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/sharpen.hpp"
 #include "scanmesh/recon/front.hpp"
@@ -67,6 +68,11 @@ struct ReconstructOptions {
   double zip_band = 0.5;
   /// Off by default: real holes stay open. On request, small loops are closed at the end.
   FillOptions fill;
+  /// Off by default: on request, the scan's noise is removed at the end, before the sharp edges
+  /// are recovered (denoise.hpp: filtered triangle normals, the vertices fitted to them; only
+  /// vertex positions change), with these options.
+  bool denoise = false;
+  DenoiseOptions denoise_options;
   /// Off by default: on request, the sharp edges and corners the scan bevelled are recovered at
   /// the end, before the fill (sharpen.hpp: new vertices where the faces meet), with these
   /// angles.
@@ -100,6 +106,7 @@ struct ReconstructResult {
   /// Gaps left open because their patch would cross the mesh, untangled (fill.hpp).
   UntangleStats untangle;
   FillStats fill;      ///< holes closed on request (options.fill)
+  DenoiseStats denoise;  ///< noise removed on request (options.denoise)
   SharpenStats sharpen;  ///< edges recovered on request (options.sharpen)
   std::size_t edge_evaluations = 0, points_scanned = 0, seed_attempts = 0;  ///< cost counters
   /// Front edge evaluations not run: known to find no candidate (cost counter).
@@ -118,7 +125,7 @@ struct ReconstructResult {
 /// spanning less than 1e-100, all points collinear, more than 1 % of the points far outside
 /// the body of the cloud (a few such stray points become outliers).
 /// `observer` (StageObserver, front.hpp) hears the name of each stage when it starts ("reduce",
-/// "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, "sharpen" when
+/// "normals", "front", "refine", "output", "gaps" when sampling gaps are closed, "denoise" when the noise is to be removed, "sharpen" when
 /// edges are to be recovered, and "fill" when holes are to be closed) and "done" at the end. Steps within a stage carry the stage's name
 /// and a slash ("front/growth", see advance_front): a caller that times stages only counts them
 /// into the stage.

@@ -1,0 +1,102 @@
+// `scanmesh denoise`: remove a scan's noise from a mesh while keeping its sharp edges (filtered
+// triangle normals, then the vertices fitted to the planes they give). Only vertices move.
+// SPDX-License-Identifier: MIT
+#include <chrono>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "commands.hpp"
+#include "scanmesh/common/error.hpp"
+#include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/denoise.hpp"
+
+namespace scanmesh::cli {
+namespace {
+
+struct DenoiseArgs {
+  std::string mesh;
+  std::string output;
+  recon::DenoiseOptions options;
+  bool ascii = false;
+  bool json = false;
+};
+
+int run_denoise(const DenoiseArgs& args) {
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  if (const auto errors = args.options.validate(); !errors.empty())
+    throw ConfigError(errors.front());
+  recon::Mesh mesh = read_triangle_mesh(args.mesh);
+  const recon::MeshReport before = recon::analyze(mesh);
+  if (before.non_manifold_edges > 0 || !before.orientation_consistent)
+    throw InputError(args.mesh + ": only a manifold, consistently oriented mesh can be " +
+                     "denoised; this one has " + std::to_string(before.non_manifold_edges) +
+                     " non-manifold edge(s) and " + std::to_string(before.inconsistent_edges) +
+                     " inconsistently oriented edge(s) (see scanmesh inspect); nothing written");
+  const recon::DenoiseStats stats = recon::denoise_mesh(mesh, args.options);
+  write_mesh_file(mesh, args.output, args.ascii);
+  const recon::MeshReport after = recon::analyze(mesh);
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  if (args.json) {
+    nlohmann::json j;
+    j["input"] = args.mesh;
+    j["output"] = args.output;
+    put_denoise(j, stats);
+    j["vertices"] = mesh.vertices.size();
+    j["triangles"] = mesh.triangles.size();
+    put_topology(j, after);
+    j["seconds_total"] = seconds;
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << std::setprecision(4) << "moved            " << stats.moved << " vertices, "
+              << stats.mean_move << " on average, " << stats.max_move << " at most ("
+              << stats.clamped << " cut to the largest move)\n"
+              << "left             " << stats.refused
+              << " vertices where they were (a move would fold or cross)\n"
+              << "vertices         " << mesh.vertices.size() << "\n"
+              << "triangles        " << mesh.triangles.size() << "\n"
+              << "boundary loops   " << after.boundary_loops << "\n"
+              << "genus            " << after.genus << "\n"
+              << "written          " << args.output << "\n"
+              << std::fixed << std::setprecision(3) << "seconds          " << seconds << "\n";
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_denoise_options(CLI::App& cmd, recon::DenoiseOptions& options, const std::string& when) {
+  cmd.add_option("--denoise-angle", options.feature_deg,
+                 when + "triangles whose normals are this many degrees apart weigh exp(-1/2) in "
+                        "each other's average (twice as far: exp(-2)); above the noise's normal "
+                        "scatter, below the edges to keep; 0: twice the median angle between "
+                        "neighbouring triangles (the noise's scatter), at most 15")
+      ->capture_default_str()
+      ->check(kNonNegative);
+  cmd.add_option("--normal-iterations", options.normal_iterations,
+                 when + "rounds of the normal filter (each reaches one ring further)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, recon::DenoiseOptions::kMaxIterations));
+  cmd.add_option("--vertex-iterations", options.vertex_iterations,
+                 when + "rounds of the vertex update towards the filtered planes")
+      ->capture_default_str()
+      ->check(CLI::Range(1, recon::DenoiseOptions::kMaxIterations));
+}
+
+void add_denoise_command(CLI::App& app, Runner& run) {
+  auto args = std::make_shared<DenoiseArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "denoise", "Remove a scan's noise from a mesh, keeping its sharp edges (only vertices move)");
+  cmd->add_option("MESH", args->mesh, "mesh file: .ply .stl .obj")->required();
+  cmd->add_option("-o,--output", args->output, "output mesh: .stl .ply .obj")->required();
+  add_denoise_options(*cmd, args->options, "");
+  cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
+  cmd->add_flag("--json", args->json, "print one JSON object with the figures");
+  cmd->callback([args, &run] { run = [args] { return run_denoise(*args); }; });
+}
+
+}  // namespace scanmesh::cli
