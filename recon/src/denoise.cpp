@@ -19,7 +19,8 @@ namespace {
 /// Rounds of undoing the moves that make triangles cross before the input is given back.
 constexpr int kMaxSettleRounds = 8;
 /// A range weight exp(-r) below exp(-kNegligible) (1e-11 of a parallel neighbour's) is left out.
-constexpr float kNegligible = 25;
+constexpr double kNegligible = 25;
+constexpr double kTableStep = 64;  ///< entries of the exp(-r) table per unit of r
 
 std::string number(double v) {
   char text[32];
@@ -106,8 +107,8 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   // The noise's own normal scatter: the median angle between the normals of two triangles
   // sharing an edge (a scan's sharp edges are a small share of its edges).
   {
-    std::vector<float> angles;
-    angles.reserve(nt * 3 / 2);
+    std::vector<double> bend;  // 1 - cos of the angle: in the angle's order, without a trig call
+    bend.reserve(nt * 3 / 2);
     for (std::uint32_t i = 0; i < nt; ++i)
       for (std::uint32_t k = nstart[i]; k < nstart[i + 1]; ++k) {
         const std::uint32_t j = nlist[k];
@@ -115,14 +116,12 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
         int shared = 0;
         for (std::uint32_t a : mesh.triangles[i])
           for (std::uint32_t b : mesh.triangles[j]) shared += a == b ? 1 : 0;
-        if (shared == 2)
-          angles.push_back(static_cast<float>(
-              std::atan2(normal[i].cross(normal[j]).norm(), normal[i].dot(normal[j]))));
+        if (shared == 2) bend.push_back(1 - normal[i].dot(normal[j]));
       }
-    if (!angles.empty()) {
-      auto mid = angles.begin() + static_cast<std::ptrdiff_t>(angles.size() / 2);
-      std::nth_element(angles.begin(), mid, angles.end());
-      stats.noise_deg = *mid * 180 / std::numbers::pi;
+    if (!bend.empty()) {
+      auto mid = bend.begin() + static_cast<std::ptrdiff_t>(bend.size() / 2);
+      std::nth_element(bend.begin(), mid, bend.end());
+      stats.noise_deg = std::acos(std::clamp(1 - *mid, -1.0, 1.0)) * 180 / std::numbers::pi;
     }
   }
   stats.feature_deg = options.feature_deg > 0
@@ -133,14 +132,25 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   if (!(stats.feature_deg >= DenoiseOptions::kNoNoiseDeg)) return stats;
   const double sigma_r = 2 * std::sin(0.5 * stats.feature_deg * std::numbers::pi / 180);
   const double inv_2rr = 1.0 / (2 * sigma_r * sigma_r);
+
+  // exp(-r) for the weights, tabulated (a 64th apart, linear in between: within 3e-5 of it),
+  // which the filter asks for a dozen times a triangle and round.
+  std::vector<double> table(static_cast<std::size_t>(kNegligible * kTableStep) + 2);
+  for (std::size_t k = 0; k < table.size(); ++k)
+    table[k] = std::exp(-static_cast<double>(k) / kTableStep);
+  auto falloff = [&](double r) {
+    const double at = r * kTableStep;
+    const auto k = static_cast<std::size_t>(at);
+    return table[k] + (at - static_cast<double>(k)) * (table[k + 1] - table[k]);
+  };
   // The weights of area and distance do not change while the normals are filtered.
   std::vector<double> wsp(nlist.size());
   for (std::uint32_t i = 0; i < nt; ++i)
     for (std::uint32_t k = nstart[i]; k < nstart[i + 1]; ++k) {
       const std::uint32_t j = nlist[k];
-      wsp[k] = area[j] * std::exp(-(cen[j] - cen[i]).squaredNorm() * inv_2ss);
+      const double r = (cen[j] - cen[i]).squaredNorm() * inv_2ss;
+      wsp[k] = r < kNegligible ? area[j] * falloff(r) : 0.0;
     }
-
   std::vector<Vec3> next(nt);
   for (int it = 0; it < options.normal_iterations; ++it) {
     for (std::uint32_t i = 0; i < nt; ++i) {
@@ -153,8 +163,8 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
       for (std::uint32_t k = nstart[i]; k < nstart[i + 1]; ++k) {
         const Vec3& nj = normal[nlist[k]];
         if (nj.isZero()) continue;
-        const float r = static_cast<float>((nj - ni).squaredNorm() * inv_2rr);
-        if (r < kNegligible) sum += wsp[k] * std::exp(-r) * nj;
+        const double r = (nj - ni).squaredNorm() * inv_2rr;
+        if (r < kNegligible) sum += wsp[k] * falloff(r) * nj;
       }
       const double len = sum.norm();
       next[i] = len > 0 ? Vec3(sum / len) : ni;
@@ -218,16 +228,22 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   std::vector<Vec3>().swap(x);
   std::vector<Vec3>().swap(xn);
   const double min_angle_cos = std::cos(std::numbers::pi / 180);  // 1 degree
+  // The vertices undone since the last crossing check: after the first (over the whole mesh),
+  // only the triangles at them can cross anew.
+  std::vector<std::uint8_t> recheck(nv, 0);
   auto undo = [&](const Triangle& t) {
     bool any = false;
     for (std::uint32_t v : t)
       if (moved[v]) {
         moved[v] = 0;
+        recheck[v] = 1;
         mesh.vertices[v] = orig[v];
         any = true;
       }
     return any;
   };
+  std::vector<Triangle> order;  // the others, then the triangles at a re-checked vertex
+  std::vector<std::uint32_t> order_id;
   for (int round = 0; round < kMaxSettleRounds; ++round) {
     bool changed = true;
     while (changed) {
@@ -239,13 +255,33 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
         const Vec3 n = (b - a).cross(c - a);
         const Vec3 n0 = (orig[t[1]] - orig[t[0]]).cross(orig[t[2]] - orig[t[0]]);
         const bool tilted = !(n.dot(n0) > 0.5 * n.norm() * n0.norm());
-        const bool thin =
-            detail::min_angle_cos(a, b, c) >= min_angle_cos &&
-            detail::min_angle_cos(a, b, c) > detail::min_angle_cos(orig[t[0]], orig[t[1]], orig[t[2]]);
+        const double sharpest = detail::min_angle_cos(a, b, c);
+        const bool thin = sharpest >= min_angle_cos &&
+                          sharpest > detail::min_angle_cos(orig[t[0]], orig[t[1]], orig[t[2]]);
         if ((tilted || thin) && undo(t)) changed = true;
       }
     }
-    const SelfIntersections crossing = find_self_intersections(mesh, kAllPairs);
+    SelfIntersections crossing;
+    if (round == 0) {
+      crossing = find_self_intersections(mesh, kAllPairs);
+    } else {
+      order.clear();
+      order_id.clear();
+      std::size_t from = 0;
+      for (const bool at_recheck : {false, true}) {
+        for (std::uint32_t i = 0; i < nt; ++i) {
+          const Triangle& t = mesh.triangles[i];
+          if ((recheck[t[0]] | recheck[t[1]] | recheck[t[2]]) != at_recheck) continue;
+          order.push_back(t);
+          order_id.push_back(i);
+        }
+        if (!at_recheck) from = order.size();
+      }
+      if (from == nt) break;  // nothing undone since the last check
+      crossing = find_self_intersections(mesh.vertices, order, kAllPairs, from);
+      for (auto& pair : crossing.examples) pair = {order_id[pair[0]], order_id[pair[1]]};
+    }
+    std::fill(recheck.begin(), recheck.end(), 0);
     bool undone = false;
     for (const auto& [i, j] : crossing.examples) {
       // Both undone: either may be the one that moved into the other.
