@@ -77,6 +77,15 @@ void add_denoise_options(CLI::App& cmd, recon::DenoiseOptions& options, const st
                         "neighbouring triangles (the noise's scatter), at most 15")
       ->capture_default_str()
       ->check(kNonNegative);
+  cmd.add_option("--noise-sigma", options.noise_mm,
+                 when + "the scan's noise (standard deviation, mesh units); 0: measured on the "
+                        "vertices (quadric fits through their 20 nearest neighbours)")
+      ->capture_default_str()
+      ->check(kNonNegative);
+  cmd.add_option("--max-noise-moves", options.noise_moves,
+                 when + "a vertex moves at most this many times the noise")
+      ->capture_default_str()
+      ->check(kPositive);
   cmd.add_option("--normal-iterations", options.normal_iterations,
                  when + "rounds of the normal filter (each reaches one ring further)")
       ->capture_default_str()

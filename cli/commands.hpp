@@ -98,6 +98,7 @@ inline void put_denoise(nlohmann::json& j, const recon::DenoiseStats& s) {
   j["denoise_max_move"] = s.max_move;
   j["denoise_noise_deg"] = s.noise_deg;
   j["denoise_feature_deg"] = s.feature_deg;
+  j["denoise_noise"] = s.noise_mm;
 }
 
 /// Reads the mesh a command works on (fill, sharpen): a file of vertices only (a point cloud)

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "scanmesh/recon/intersections.hpp"
+#include "scanmesh/recon/reduce.hpp"
 #include "triangle_shape.hpp"
 #include "vertex_triangles.hpp"
 
@@ -46,6 +47,12 @@ std::vector<std::string> DenoiseOptions::validate() const {
   if (!(max_move > 0 && max_move <= 2))
     errors.push_back("denoise: the largest move must be above 0 and at most 2 edge lengths, got " +
                      number(max_move));
+  if (!(noise_mm >= 0 && std::isfinite(noise_mm)))
+    errors.push_back("denoise: the noise must be 0 (measured) or a positive length, got " +
+                     number(noise_mm));
+  if (!(noise_moves > 0 && noise_moves <= 100))
+    errors.push_back("denoise: the largest move must be above 0 and at most 100 times the noise, got " +
+                     number(noise_moves));
   return errors;
 }
 
@@ -62,6 +69,33 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   auto centroid = [](const std::vector<Vec3>& x, const Triangle& t) {
     return (x[t[0]] + x[t[1]] + x[t[2]]) / 3.0;
   };
+
+  // Each vertex's mean edge length (a move is cut to max_move of it).
+  std::vector<double> edge_sum(nv, 0);
+  std::vector<std::uint32_t> edge_count(nv, 0);
+  for (const Triangle& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = t[k], b = t[(k + 1) % 3];
+      const double len = (x0[a] - x0[b]).norm();
+      edge_sum[a] += len;
+      edge_sum[b] += len;
+      ++edge_count[a];
+      ++edge_count[b];
+    }
+  // The noise in length units: the shell's thickness about a quadric fit through each vertex's
+  // neighbours (curvature absorbed), over the vertices that triangles use.
+  if (options.noise_mm > 0) {
+    stats.noise_mm = options.noise_mm;
+  } else {
+    std::vector<Vec3> used;
+    used.reserve(nv);
+    for (std::uint32_t v = 0; v < nv; ++v)
+      if (edge_count[v] > 0) used.push_back(x0[v]);
+    stats.noise_mm = estimate_spacing(used).thickness_mm;
+  }
+  // No measurable noise (a CAD part's vertices, a sampling too sparse to fit): nothing to do.
+  if (!(stats.noise_mm > 0)) return stats;
+  const double noise_limit = options.noise_moves * stats.noise_mm;
 
   // Each triangle's neighbours: the triangles sharing a corner with it (itself left out), as
   // compressed lists, each once.
@@ -104,20 +138,21 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   if (dcount == 0 || !(dsum > 0)) return stats;  // lone triangles: nothing to average
   const double sigma_s = dsum / static_cast<double>(dcount);
   const double inv_2ss = 1.0 / (2 * sigma_s * sigma_s);
-  // The noise's own normal scatter: the median angle between the normals of two triangles
-  // sharing an edge (a scan's sharp edges are a small share of its edges).
+  // The noise's own normal scatter: the median angle between a triangle's normal and the
+  // area-weighted mean of its neighbours' (a second difference: a smooth curvature, even a
+  // coarsely sampled one, largely cancels in it, and a scan's sharp edges are too few to move
+  // the median).
   {
     std::vector<double> bend;  // 1 - cos of the angle: in the angle's order, without a trig call
-    bend.reserve(nt * 3 / 2);
-    for (std::uint32_t i = 0; i < nt; ++i)
-      for (std::uint32_t k = nstart[i]; k < nstart[i + 1]; ++k) {
-        const std::uint32_t j = nlist[k];
-        if (j < i || normal[i].isZero() || normal[j].isZero()) continue;
-        int shared = 0;
-        for (std::uint32_t a : mesh.triangles[i])
-          for (std::uint32_t b : mesh.triangles[j]) shared += a == b ? 1 : 0;
-        if (shared == 2) bend.push_back(1 - normal[i].dot(normal[j]));
-      }
+    bend.reserve(nt);
+    for (std::uint32_t i = 0; i < nt; ++i) {
+      if (normal[i].isZero()) continue;
+      Vec3 m = Vec3::Zero();
+      for (std::uint32_t k = nstart[i]; k < nstart[i + 1]; ++k)
+        m += area[nlist[k]] * normal[nlist[k]];
+      const double len = m.norm();
+      if (len > 0) bend.push_back(1 - normal[i].dot(m) / len);
+    }
     if (!bend.empty()) {
       auto mid = bend.begin() + static_cast<std::ptrdiff_t>(bend.size() / 2);
       std::nth_element(bend.begin(), mid, bend.end());
@@ -192,19 +227,6 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
     x.swap(xn);
   }
 
-  // Each move cut to max_move of the vertex's mean edge length, then made where it keeps the
-  // mesh valid.
-  std::vector<double> edge_sum(nv, 0);
-  std::vector<std::uint32_t> edge_count(nv, 0);
-  for (const Triangle& t : mesh.triangles)
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t a = t[k], b = t[(k + 1) % 3];
-      const double len = (x0[a] - x0[b]).norm();
-      edge_sum[a] += len;
-      edge_sum[b] += len;
-      ++edge_count[a];
-      ++edge_count[b];
-    }
   // Every vertex moved at once, then the moves that spoil a triangle undone: one that tilts
   // by more than 60 degrees or gets an angle under 1 degree (unless it had one before), or that
   // crosses another (a pair the input already had is left alone). Undoing a move can spoil a
@@ -215,7 +237,7 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   for (std::uint32_t v = 0; v < nv; ++v) {
     if (edge_count[v] == 0 || x[v] == orig[v]) continue;
     Vec3 d = x[v] - orig[v];
-    const double limit = options.max_move * edge_sum[v] / edge_count[v];
+    const double limit = std::min(options.max_move * edge_sum[v] / edge_count[v], noise_limit);
     if (const double len = d.norm(); len > limit) {
       d *= limit / len;
       ++stats.clamped;

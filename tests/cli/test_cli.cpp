@@ -1426,6 +1426,8 @@ TEST_CASE("denoise and reconstruct --denoise flatten a noisy box's faces; only v
   CHECK(smooth.at("denoise_mean_move").get<double>() > 0);
   CHECK(smooth.at("denoise_max_move").get<double>() < 0.25);  // half an edge at most
   CHECK(smooth.at("denoise_noise_deg").get<double>() > 1);
+  CHECK(smooth.at("denoise_noise").get<double>() > 0.01);  // the scan's 0.02 mm, measured
+  CHECK(smooth.at("denoise_noise").get<double>() < 0.025);
   CHECK(smooth.at("denoise_feature_deg").get<double>() ==
         Approx(2 * smooth.at("denoise_noise_deg").get<double>()));
   CHECK(smooth.at("step_seconds").is_object());
@@ -1445,7 +1447,8 @@ TEST_CASE("denoise and reconstruct --denoise flatten a noisy box's faces; only v
   CHECK(later.at("genus") == 0);
   CHECK(later.at("orientation_consistent") == true);
   r = run(dir, {"denoise", (dir / "plain.ply").string(), "-o", (dir / "text.ply").string(),
-                "--denoise-angle", "5", "--normal-iterations", "2", "--vertex-iterations", "5"});
+                "--denoise-angle", "5", "--normal-iterations", "2", "--vertex-iterations", "5",
+                "--noise-sigma", "0.02", "--max-noise-moves", "2"});
   REQUIRE(r.status == 0);
   CHECK_THAT(r.out, Catch::Contains("moved") && Catch::Contains("written"));
 

@@ -167,10 +167,38 @@ TEST_CASE("denoise: a mesh without noise is left exactly as it is", "[denoise]")
   const Mesh before = mesh_all_points(box_points());
   Mesh after = before;
   const DenoiseStats st = denoise_mesh(after);
-  CHECK(st.noise_deg < DenoiseOptions::kNoNoiseDeg);
+  CHECK(st.noise_mm == 0);
   CHECK(st.moved == 0);
   CHECK(after.vertices == before.vertices);
   CHECK(after.triangles == before.triangles);
+}
+
+TEST_CASE("denoise: a clean curved surface barely moves; a given noise bounds every move",
+          "[denoise]") {
+  const Mesh sphere = mesh_all_points(scanmesh::test::sphere_points(4000, 10));
+  Mesh m = sphere;
+  const DenoiseStats st = denoise_mesh(m);
+  INFO("noise " << st.noise_mm << ", max move " << st.max_move);
+  CHECK(st.noise_mm < 1e-3);  // the quadric fits absorb the curvature
+  CHECK(st.max_move <= DenoiseOptions{}.noise_moves * st.noise_mm + 1e-12);
+  CHECK(st.max_move < 1e-3);  // a thousandth of the radius, a 500th of the spacing
+
+  auto points = box_points();
+  scanmesh::test::add_noise(points, 0.02, 4);
+  const Mesh box = mesh_all_points(points);
+  Mesh given = box;
+  DenoiseOptions o;
+  o.noise_mm = 0.005;  // a quarter of the real noise: every move within 3 times that
+  const DenoiseStats sg = denoise_mesh(given, o);
+  CHECK(sg.noise_mm == 0.005);
+  CHECK(sg.max_move <= 0.015 + 1e-12);
+  CHECK(sg.clamped > 0);
+  Mesh measured = box;
+  const DenoiseStats sm = denoise_mesh(measured);
+  INFO("measured noise " << sm.noise_mm);
+  CHECK(sm.noise_mm > 0.01);  // the quadric residual's lower quartile: a little under 0.02
+  CHECK(sm.noise_mm < 0.025);
+  CHECK(rms_of(measured, box_distance) < rms_of(given, box_distance));
 }
 
 TEST_CASE("denoise: bad options are refused; lone triangles and empty meshes are left alone",
@@ -190,6 +218,12 @@ TEST_CASE("denoise: bad options are refused; lone triangles and empty meshes are
   CHECK_THROWS_AS(denoise_mesh(m, o), std::invalid_argument);
   o = {};
   o.max_move = 0;
+  CHECK_THROWS_AS(denoise_mesh(m, o), std::invalid_argument);
+  o = {};
+  o.noise_mm = -1;
+  CHECK_THROWS_AS(denoise_mesh(m, o), std::invalid_argument);
+  o = {};
+  o.noise_moves = 0;
   CHECK_THROWS_AS(denoise_mesh(m, o), std::invalid_argument);
   CHECK(DenoiseOptions{}.validate().empty());
 

@@ -35,6 +35,14 @@ struct DenoiseOptions {
   /// A vertex moves at most this share of the mean length of its edges (the noise is a small
   /// share of the spacing; a larger move would be a feature flattened, not noise removed).
   double max_move = 0.5;
+  /// The scan's noise (standard deviation, mesh units); 0 (the default): measured on the
+  /// vertices, as the shell's thickness about quadric fits through their 20 nearest neighbours
+  /// (curvature absorbed; reduce.hpp, estimate_spacing). Where it cannot be measured (0), nothing
+  /// moves.
+  double noise_mm = 0;
+  /// A vertex moves at most this many times the noise: removing noise moves a sample by about
+  /// the noise; a larger move flattens what the scan measured (a coarsely sampled curve).
+  double noise_moves = 3;
   static constexpr int kMaxIterations = 100;
   [[nodiscard]] std::vector<std::string> validate() const;
 };
@@ -50,6 +58,7 @@ struct DenoiseStats {
   /// The median angle between the normals of two triangles sharing an edge, before (degrees).
   double noise_deg = 0;
   double feature_deg = 0;  ///< the normals' range used (degrees)
+  double noise_mm = 0;     ///< the noise used (mesh units; see DenoiseOptions::noise_mm)
 };
 
 /// Removes the noise of `mesh` (see above) in place. Only vertex positions change: the
