@@ -52,7 +52,10 @@ int run_denoise(const DenoiseArgs& args) {
     j["seconds_total"] = seconds;
     std::cout << j.dump() << "\n";
   } else {
-    std::cout << std::setprecision(4) << "moved            " << stats.moved << " vertices, "
+    std::cout << std::setprecision(4) << "noise            " << stats.noise_mm
+              << " (measured on the vertices unless given), normals' scatter " << stats.noise_deg
+              << " deg, range " << stats.feature_deg << " deg\n"
+              << "moved            " << stats.moved << " vertices, "
               << stats.mean_move << " on average, " << stats.max_move << " at most ("
               << stats.clamped << " cut to the largest move)\n"
               << "left             " << stats.refused

@@ -326,8 +326,8 @@ int run_reconstruct(const ReconstructArgs& args) {
                 << " of them because a patch would cross the mesh)\n";
     if (opt.denoise)
       std::cout << "denoised         " << res.denoise.moved << " vertices moved, "
-                << res.denoise.mean_move << " on average (noise " << res.denoise.noise_deg
-                << " deg between neighbouring triangles; " << res.denoise.refused
+                << res.denoise.mean_move << " on average (noise " << res.denoise.noise_mm
+                << ", normals' scatter " << res.denoise.noise_deg << " deg; " << res.denoise.refused
                 << " left: a move would fold or cross)\n";
     if (opt.sharpen)
       std::cout << "sharpened        " << res.sharpen.edge_vertices << " vertices on edges, "
