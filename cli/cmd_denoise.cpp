@@ -37,7 +37,12 @@ int run_denoise(const DenoiseArgs& args) {
                      "denoised; this one has " + std::to_string(before.non_manifold_edges) +
                      " non-manifold edge(s) and " + std::to_string(before.inconsistent_edges) +
                      " inconsistently oriented edge(s) (see scanmesh inspect); nothing written");
-  const recon::DenoiseStats stats = recon::denoise_mesh(mesh, args.options);
+  recon::DenoiseStats stats;
+  try {
+    stats = recon::denoise_mesh(mesh, args.options);
+  } catch (const GeometryError& e) {
+    throw InputError(args.mesh + ": " + e.what() + "; nothing written");
+  }
   write_mesh_file(mesh, args.output, args.ascii);
   const recon::MeshReport after = recon::analyze(mesh);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();

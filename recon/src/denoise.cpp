@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reduce.hpp"
 #include "triangle_shape.hpp"
@@ -82,6 +83,21 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
       ++edge_count[a];
       ++edge_count[b];
     }
+  // Squared distances (the noise's quadric fits, the filter's weights) must neither overflow nor
+  // underflow in double precision: the reconstruction's bounds on its input.
+  {
+    constexpr double kHuge = 1e100, kTiny = 1e-100;
+    Eigen::AlignedBox3d box;
+    for (std::uint32_t v = 0; v < nv; ++v) {
+      if (edge_count[v] == 0) continue;
+      if (!x0[v].allFinite() || x0[v].cwiseAbs().maxCoeff() > kHuge)
+        throw GeometryError("denoise: vertex #" + std::to_string(v) +
+                            " has a coordinate that is not finite or beyond +-1e100; check the "
+                            "mesh's units");
+      box.extend(x0[v]);
+    }
+    if (!(box.sizes().maxCoeff() >= kTiny)) return stats;  // a point: nothing to measure
+  }
   // The noise in length units: the shell's thickness about a quadric fit through each vertex's
   // neighbours (curvature absorbed), over the vertices that triangles use.
   if (options.noise_mm > 0) {

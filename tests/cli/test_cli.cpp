@@ -1470,5 +1470,10 @@ TEST_CASE("denoise and reconstruct --denoise flatten a noisy box's faces; only v
   r = run(dir, {"denoise", (dir / "fin.obj").string(), "-o", (dir / "bad.ply").string()});
   CHECK(r.status == 3);
   CHECK_THAT(r.err, Catch::Contains("fin.obj") && Catch::Contains("non-manifold"));
+  // A vertex too far out to square: exit 3, the file and the vertex named.
+  spit(dir / "far.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1e300 1 0\nf 1 2 3\nf 2 4 3\n");
+  r = run(dir, {"denoise", (dir / "far.obj").string(), "-o", (dir / "bad.ply").string()});
+  CHECK(r.status == 3);
+  CHECK_THAT(r.err, Catch::Contains("far.obj") && Catch::Contains("vertex #3"));
   CHECK(!fs::exists(dir / "bad.ply"));
 }

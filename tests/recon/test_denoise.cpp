@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -230,6 +231,19 @@ TEST_CASE("denoise: bad options are refused; lone triangles and empty meshes are
   Mesh bad = m;
   bad.triangles.push_back({0, 1, 99});
   CHECK_THROWS_AS(denoise_mesh(bad), std::invalid_argument);
+
+  // Coordinates whose squares overflow (fuzz: an OBJ with a vertex at 1e300), or not finite:
+  // a clear error naming the vertex, the mesh unchanged.
+  auto points = box_points();
+  scanmesh::test::add_noise(points, 0.02, 2);
+  const Mesh noisy = mesh_all_points(points);
+  for (const double far : {1e300, std::numeric_limits<double>::quiet_NaN()}) {
+    Mesh huge = noisy;
+    huge.vertices[7].x() = far;
+    const Mesh kept = huge;
+    CHECK_THROWS_WITH(denoise_mesh(huge), Catch::Contains("vertex #7"));
+    CHECK(huge.triangles == kept.triangles);
+  }
 
   Mesh empty;
   CHECK(denoise_mesh(empty).moved == 0);

@@ -66,6 +66,9 @@ struct DenoiseStats {
 /// are, and no move is made that would make two triangles cross (each is checked against the
 /// mesh around it, as the reconstruction's restored features are). A boundary vertex moves
 /// like any other, towards the planes of its triangles. Cost: linear in the triangles.
+/// Throws std::invalid_argument for bad options or a triangle naming a missing vertex, and
+/// GeometryError (scanmesh/common/error.hpp) for a vertex of a triangle whose coordinates are
+/// not finite or beyond +-1e100.
 DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options = {});
 
 }  // namespace scanmesh::recon
