@@ -30,13 +30,8 @@ int run_denoise(const DenoiseArgs& args) {
   const auto t0 = Clock::now();
   if (const auto errors = args.options.validate(); !errors.empty())
     throw ConfigError(errors.front());
-  recon::Mesh mesh = read_triangle_mesh(args.mesh);
-  const recon::MeshReport before = recon::analyze(mesh);
-  if (before.non_manifold_edges > 0 || !before.orientation_consistent)
-    throw InputError(args.mesh + ": only a manifold, consistently oriented mesh can be " +
-                     "denoised; this one has " + std::to_string(before.non_manifold_edges) +
-                     " non-manifold edge(s) and " + std::to_string(before.inconsistent_edges) +
-                     " inconsistently oriented edge(s) (see scanmesh inspect); nothing written");
+  recon::Mesh mesh;
+  read_clean_mesh(args.mesh, "noise can only be removed", mesh);
   recon::DenoiseStats stats;
   try {
     stats = recon::denoise_mesh(mesh, args.options);

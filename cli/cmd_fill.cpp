@@ -41,17 +41,10 @@ int run_fill(const FillArgs& args) {
   opt.max_width = args.max_width;
   opt.refine = !args.flat;
   if (const auto errors = opt.validate(); !errors.empty()) throw ConfigError(errors.front());
-  recon::Mesh mesh = read_triangle_mesh(args.mesh);
-  const recon::MeshReport before = recon::analyze(mesh);
   // The patches are only defined where every vertex has one fan and the sides agree; say which
   // test failed rather than writing the mesh back unchanged.
-  if (before.non_manifold_edges > 0 || before.non_manifold_vertices > 0 ||
-      !before.orientation_consistent)
-    throw InputError(args.mesh + ": holes can only be filled in a manifold, consistently " +
-                     "oriented mesh; this one has " + std::to_string(before.non_manifold_edges) +
-                     " non-manifold edge(s), " + std::to_string(before.non_manifold_vertices) +
-                     " non-manifold vertex(es) and " + std::to_string(before.inconsistent_edges) +
-                     " inconsistently oriented edge(s) (see scanmesh inspect); nothing written");
+  recon::Mesh mesh;
+  const recon::MeshReport before = read_clean_mesh(args.mesh, "holes can only be filled", mesh);
   const recon::FillStats stats = recon::fill_holes(mesh, opt);
   write_mesh_file(mesh, args.output, args.ascii);
   const recon::MeshReport after = recon::analyze(mesh);

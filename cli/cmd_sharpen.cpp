@@ -31,13 +31,8 @@ int run_sharpen(const SharpenArgs& args) {
   const auto t0 = Clock::now();
   if (const auto errors = args.options.validate(); !errors.empty())
     throw ConfigError(errors.front());
-  recon::Mesh mesh = read_triangle_mesh(args.mesh);
-  const recon::MeshReport before = recon::analyze(mesh);
-  if (before.non_manifold_edges > 0 || !before.orientation_consistent)
-    throw InputError(args.mesh + ": edges can only be sharpened in a manifold, consistently " +
-                     "oriented mesh; this one has " + std::to_string(before.non_manifold_edges) +
-                     " non-manifold edge(s) and " + std::to_string(before.inconsistent_edges) +
-                     " inconsistently oriented edge(s) (see scanmesh inspect); nothing written");
+  recon::Mesh mesh;
+  read_clean_mesh(args.mesh, "edges can only be sharpened", mesh);
   const recon::SharpenStats stats = recon::sharpen_edges(mesh, args.options);
   write_mesh_file(mesh, args.output, args.ascii);
   const recon::MeshReport after = recon::analyze(mesh);

@@ -112,6 +112,23 @@ inline recon::Mesh read_triangle_mesh(const std::string& file) {
   return mesh;
 }
 
+/// Reads the mesh a command changes in place (fill, sharpen, denoise) into `mesh`, with its
+/// report: refused (InputError: exit 3, nothing written) when it has no triangles or is not
+/// manifold and consistently oriented, which `what` ("holes can only be filled") needs.
+inline recon::MeshReport read_clean_mesh(const std::string& file, const std::string& what,
+                                         recon::Mesh& mesh) {
+  mesh = read_triangle_mesh(file);
+  recon::MeshReport report = recon::analyze(mesh);
+  if (report.non_manifold_edges > 0 || report.non_manifold_vertices > 0 ||
+      !report.orientation_consistent)
+    throw InputError(file + ": " + what + " in a manifold, consistently oriented mesh; this one " +
+                     "has " + std::to_string(report.non_manifold_edges) + " non-manifold edge(s), " +
+                     std::to_string(report.non_manifold_vertices) + " non-manifold vertex(es) and " +
+                     std::to_string(report.inconsistent_edges) +
+                     " inconsistently oriented edge(s) (see scanmesh inspect); nothing written");
+  return report;
+}
+
 /// Writes `mesh` like meshio::write_mesh, and warns on stderr when the file is binary STL
 /// (float32 by its format) and float cannot hold the mesh to its edge lengths (a part far from
 /// the origin): PLY, OBJ and ascii STL then keep double precision, binary STL cannot.

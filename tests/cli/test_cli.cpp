@@ -1381,17 +1381,7 @@ TEST_CASE("denoise and reconstruct --denoise flatten a noisy box's faces; only v
           "[cli]") {
   TempDir dir;
   // A 10 mm box sampled every 0.5 mm with 0.02 mm of noise (seeded).
-  std::vector<scanmesh::recon::Vec3> points;
-  for (int axis = 0; axis < 3; ++axis)
-    for (const double side : {0.0, 10.0})
-      for (int i = 0; i < 20; ++i)
-        for (int j = 0; j < 20; ++j) {
-          scanmesh::recon::Vec3 p;
-          p[axis] = side;
-          p[(axis + 1) % 3] = (i + 0.5) * 0.5;
-          p[(axis + 2) % 3] = (j + 0.5) * 0.5;
-          points.push_back(p);
-        }
+  auto points = scanmesh::test::box_face_points(10, 0.5);
   scanmesh::test::add_noise(points, 0.02, 9);
   const fs::path cloud = dir / "box.xyz";
   std::string text;

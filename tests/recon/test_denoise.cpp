@@ -28,22 +28,8 @@ using scanmesh::recon::Vec3;
 
 constexpr double kSide = 10, kStep = 0.5;
 
-/// The faces of the box [0, kSide]^3 on a grid half a step in from every edge.
-std::vector<Vec3> box_points() {
-  std::vector<Vec3> pts;
-  const int m = static_cast<int>(kSide / kStep);
-  for (int axis = 0; axis < 3; ++axis)
-    for (const double side : {0.0, kSide})
-      for (int i = 0; i < m; ++i)
-        for (int j = 0; j < m; ++j) {
-          Vec3 p;
-          p[axis] = side;
-          p[(axis + 1) % 3] = (i + 0.5) * kStep;
-          p[(axis + 2) % 3] = (j + 0.5) * kStep;
-          pts.push_back(p);
-        }
-  return pts;
-}
+/// The box [0, kSide]^3's faces, half a step in from every edge (support/shapes.hpp).
+std::vector<Vec3> box_points() { return scanmesh::test::box_face_points(kSide, kStep); }
 
 /// Distance from p to the surface of the box [0, kSide]^3.
 double box_distance(const Vec3& p) {

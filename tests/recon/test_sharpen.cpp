@@ -31,25 +31,9 @@ using scanmesh::recon::Vec3;
 
 constexpr double kSide = 10, kStep = 0.5;
 
-/// The faces of the box [0, kSide]^3 sampled on a grid half a step in from every edge: no sample
-/// lies on an edge, as when a scanner's samples fall where they fall. Off-centre, each face's
-/// grid starts `near` in along one direction and kStep - near along the other, so that most
-/// edges are cut off-centre: `near` from them on one face and kStep - near on the other.
+/// The box [0, kSide]^3's faces, no sample on an edge (support/shapes.hpp: box_face_points).
 std::vector<Vec3> box_points(double near = 0.5 * kStep) {
-  const double first[2] = {near, kStep - near};
-  std::vector<Vec3> pts;
-  const int m = static_cast<int>(kSide / kStep);
-  for (int axis = 0; axis < 3; ++axis)
-    for (const double side : {0.0, kSide})
-      for (int i = 0; i < m; ++i)
-        for (int j = 0; j < m; ++j) {
-          Vec3 p;
-          p[axis] = side;
-          p[(axis + 1) % 3] = first[0] + i * kStep;
-          p[(axis + 2) % 3] = first[1] + j * kStep;
-          pts.push_back(p);
-        }
-  return pts;
+  return scanmesh::test::box_face_points(kSide, kStep, near);
 }
 
 /// Points every 0.05 along the box's 12 edges, corners included.

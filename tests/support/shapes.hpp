@@ -65,6 +65,27 @@ inline std::vector<Vec3> cube_points(double s, double step) {
   return pts;
 }
 
+/// The faces of the box [0, side]^3 sampled on grids `step` apart with no sample on an edge, as
+/// when a scanner's samples fall where they fall: each face's grid starts `near` in along one
+/// direction and step - near along the other (half a step in along both by default).
+inline std::vector<Vec3> box_face_points(double side, double step, double near = -1) {
+  if (near < 0) near = 0.5 * step;
+  const double first[2] = {near, step - near};
+  std::vector<Vec3> pts;
+  const int m = static_cast<int>(std::round(side / step));
+  for (int axis = 0; axis < 3; ++axis)
+    for (const double at : {0.0, side})
+      for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) {
+          Vec3 p;
+          p[axis] = at;
+          p[(axis + 1) % 3] = first[0] + i * step;
+          p[(axis + 2) % 3] = first[1] + j * step;
+          pts.push_back(p);
+        }
+  return pts;
+}
+
 /// The points kept with probability keep(p) each, seeded: random dropouts, uneven density.
 template <class Keep>
 std::vector<Vec3> thin_out(const std::vector<Vec3>& pts, std::uint32_t seed, Keep keep) {
