@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 #include <utility>
@@ -12,6 +11,7 @@
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reduce.hpp"
+#include "format.hpp"
 #include "triangle_shape.hpp"
 #include "vertex_triangles.hpp"
 
@@ -24,19 +24,13 @@ constexpr int kMaxSettleRounds = 8;
 constexpr double kNegligible = 25;
 constexpr double kTableStep = 64;  ///< entries of the exp(-r) table per unit of r
 
-std::string number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
-  return text;
-}
-
 }  // namespace
 
 std::vector<std::string> DenoiseOptions::validate() const {
   std::vector<std::string> errors;
   if (!(feature_deg >= 0 && feature_deg < 90))
     errors.push_back("denoise: the feature angle must be 0 (auto) or above and below 90 degrees, got " +
-                     number(feature_deg));
+                     detail::short_number(feature_deg));
   if (!(normal_iterations >= 1 && normal_iterations <= kMaxIterations))
     errors.push_back("denoise: the normal iterations must be 1 to " +
                      std::to_string(kMaxIterations) + ", got " +
@@ -47,13 +41,13 @@ std::vector<std::string> DenoiseOptions::validate() const {
                      std::to_string(vertex_iterations));
   if (!(max_move > 0 && max_move <= 2))
     errors.push_back("denoise: the largest move must be above 0 and at most 2 edge lengths, got " +
-                     number(max_move));
+                     detail::short_number(max_move));
   if (!(noise_mm >= 0 && std::isfinite(noise_mm)))
     errors.push_back("denoise: the noise must be 0 (measured) or a positive length, got " +
-                     number(noise_mm));
+                     detail::short_number(noise_mm));
   if (!(noise_moves > 0 && noise_moves <= 100))
     errors.push_back("denoise: the largest move must be above 0 and at most 100 times the noise, got " +
-                     number(noise_moves));
+                     detail::short_number(noise_moves));
   return errors;
 }
 

@@ -8,13 +8,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <utility>
 
 #include "scanmesh/recon/intersections.hpp"
+#include "format.hpp"
 #include "vertex_triangles.hpp"
 
 namespace scanmesh::recon {
@@ -95,23 +95,17 @@ struct Candidate {
   Vec3 dir = Vec3::Zero();  ///< the recovered edge's direction (edges only)
 };
 
-std::string degrees(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
-  return text;
-}
-
 }  // namespace
 
 std::vector<std::string> SharpenOptions::validate() const {
   std::vector<std::string> errors;
   if (!(smooth_deg > 0 && smooth_deg < 90))
     errors.push_back("sharpen: the face angle must be above 0 and below 90 degrees, got " +
-                     degrees(smooth_deg));
+                     detail::short_number(smooth_deg));
   if (!(feature_deg > smooth_deg && feature_deg < 180))
     errors.push_back("sharpen: the feature angle must be above the face angle (" +
-                     degrees(smooth_deg) + ") and below 180 degrees, got " +
-                     degrees(feature_deg));
+                     detail::short_number(smooth_deg) + ") and below 180 degrees, got " +
+                     detail::short_number(feature_deg));
   if (!(passes >= 1 && passes <= kMaxPasses))
     errors.push_back("sharpen: the passes must be 1 to " + std::to_string(kMaxPasses) + ", got " +
                      std::to_string(passes));
