@@ -142,3 +142,5 @@ for f in "${files[@]}"; do
   printf '  %-36s %10s bytes\n' "$f" "$(stat -c %s "$f")"
 done
 echo "View the meshes with any STL viewer (e.g. meshlab, f3d) and the picture with an image viewer."
+echo "For CAD, a scanner's noise can be taken out and the bevelled sharp edges put back (both on"
+echo "request; see README.md): build/cli/scanmesh reconstruct $points -o out/${name}_cad.stl --denoise --sharpen"
