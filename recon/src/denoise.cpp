@@ -60,7 +60,7 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   for (const Triangle& t : mesh.triangles)
     for (std::uint32_t v : t)
       if (v >= nv) throw std::invalid_argument("denoise: a triangle names a missing vertex");
-  const std::vector<Vec3>& x0 = mesh.vertices;
+  const std::vector<Vec3> orig = mesh.vertices;  // the input's positions, kept to the end
   auto centroid = [](const std::vector<Vec3>& x, const Triangle& t) {
     return (x[t[0]] + x[t[1]] + x[t[2]]) / 3.0;
   };
@@ -71,7 +71,7 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   for (const Triangle& t : mesh.triangles)
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t a = t[k], b = t[(k + 1) % 3];
-      const double len = (x0[a] - x0[b]).norm();
+      const double len = (orig[a] - orig[b]).norm();
       edge_sum[a] += len;
       edge_sum[b] += len;
       ++edge_count[a];
@@ -84,11 +84,11 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
     Eigen::AlignedBox3d box;
     for (std::uint32_t v = 0; v < nv; ++v) {
       if (edge_count[v] == 0) continue;
-      if (!x0[v].allFinite() || x0[v].cwiseAbs().maxCoeff() > kHuge)
+      if (!orig[v].allFinite() || orig[v].cwiseAbs().maxCoeff() > kHuge)
         throw GeometryError("denoise: vertex #" + std::to_string(v) +
                             " has a coordinate that is not finite or beyond +-1e100; check the "
                             "mesh's units");
-      box.extend(x0[v]);
+      box.extend(orig[v]);
     }
     if (!(box.sizes().maxCoeff() >= kTiny)) return stats;  // a point: nothing to measure
   }
@@ -100,7 +100,7 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
     std::vector<Vec3> used;
     used.reserve(nv);
     for (std::uint32_t v = 0; v < nv; ++v)
-      if (edge_count[v] > 0) used.push_back(x0[v]);
+      if (edge_count[v] > 0) used.push_back(orig[v]);
     stats.noise_mm = estimate_spacing(used).thickness_mm;
   }
   // No measurable noise (a CAD part's vertices, a sampling too sparse to fit): nothing to do.
@@ -132,11 +132,11 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   std::vector<double> area(nt);
   for (std::uint32_t i = 0; i < nt; ++i) {
     const Triangle& t = mesh.triangles[i];
-    const Vec3 c = (x0[t[1]] - x0[t[0]]).cross(x0[t[2]] - x0[t[0]]);
+    const Vec3 c = (orig[t[1]] - orig[t[0]]).cross(orig[t[2]] - orig[t[0]]);
     const double len = c.norm();
     area[i] = 0.5 * len;
     normal[i] = len > 0 ? Vec3(c / len) : Vec3::Zero();
-    cen[i] = centroid(x0, t);
+    cen[i] = centroid(orig, t);
   }
   double dsum = 0;
   std::size_t dcount = 0;
@@ -221,7 +221,7 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
 
   // The vertex update (Jacobi): each vertex moves by the mean over its triangles of its
   // offset from their planes (the filtered normal through the current centroid).
-  std::vector<Vec3> x = x0, xn(nv);
+  std::vector<Vec3> x = orig, xn(nv);
   for (int it = 0; it < options.vertex_iterations; ++it) {
     for (std::uint32_t i = 0; i < nt; ++i) cen[i] = centroid(x, mesh.triangles[i]);
     for (std::uint32_t v = 0; v < nv; ++v) {
@@ -241,7 +241,6 @@ DenoiseStats denoise_mesh(Mesh& mesh, const DenoiseOptions& options) {
   // by more than 60 degrees or gets an angle under 1 degree (unless it had one before), or that
   // crosses another (a pair the input already had is left alone). Undoing a move can spoil a
   // neighbour in turn, so until nothing changes; the input itself passes.
-  const std::vector<Vec3> orig = x0;  // (x0 is mesh.vertices from here on)
   std::vector<std::uint8_t> moved(nv, 0);
   std::size_t wanted = 0;
   for (std::uint32_t v = 0; v < nv; ++v) {
