@@ -269,6 +269,9 @@ int run_reconstruct(const ReconstructArgs& args) {
     j["untangle_removed_triangles"] = res.untangle.removed;
     j["untangle_skipped_gaps"] = res.untangle.skipped;
     j["untangle_split_fans"] = res.untangle.split_fans;
+    j["untangle_widened"] = res.untangle.widened;
+    j["untangle_unfillable"] = res.untangle.unfillable;
+    j["untangle_dropped_points"] = res.untangle.dropped.size();
     j["removed_fan_triangles"] = res.removed_fan_triangles;
     j["inserted_points"] = res.refine.inserted;
     j["inserted_by_edge_split"] = res.refine.edge_splits;
@@ -318,7 +321,12 @@ int run_reconstruct(const ReconstructArgs& args) {
     if (res.untangle.closed > 0)
       std::cout << "untangled gaps   " << res.untangle.closed << " (" << res.untangle.removed
                 << " triangles reaching through them removed and closed again, "
-                << res.untangle.reinserted << " points put back)\n";
+                << res.untangle.reinserted << " points put back"
+                << (res.untangle.dropped.empty()
+                        ? std::string()
+                        : ", " + std::to_string(res.untangle.dropped.size()) +
+                              " of a removed fold on no patch: outliers")
+                << ")\n";
     if (opt.fill.max_edges > 0)
       std::cout << "filled holes     " << res.fill.filled << " (" << res.fill.triangles
                 << " triangles, " << res.fill.vertices << " new vertices; " << res.fill.kept

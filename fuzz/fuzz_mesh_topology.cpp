@@ -130,15 +130,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       if (recon::find_self_intersections(mesh, 0, old_triangles).pairs != 0) __builtin_trap();
       // The loops left open because their patch crosses the mesh, untangled where a few
       // triangles reach through them: the mesh stays clean, with as many components, as many
-      // vertices used, and exactly the loops it closed fewer.
+      // vertices used but the few of a widened removal dropped (and closed up), and exactly the
+      // loops it closed fewer.
       if (stats.crossing > 0 && !opt.refine && opt.max_perimeter_spacings > 0) {
         const std::size_t old_vertices = mesh.vertices.size();
         const recon::UntangleStats u = recon::untangle_gaps(mesh, opt, spacing, stats);
         const recon::MeshReport untangled = recon::analyze(mesh);
         if (untangled.non_manifold_edges != 0 || untangled.non_manifold_vertices != 0 ||
             !untangled.orientation_consistent || untangled.components != after.components ||
-            untangled.referenced_vertices != after.referenced_vertices ||
-            mesh.vertices.size() != old_vertices ||
+            untangled.referenced_vertices + u.dropped.size() != after.referenced_vertices ||
+            mesh.vertices.size() + u.dropped.size() != old_vertices ||
+            u.dropped.size() > recon::kUntangleMaxDropped * u.widened ||
+            u.renumber.size() != (u.dropped.empty() ? 0 : old_vertices) ||
             untangled.boundary_loops + u.closed != after.boundary_loops ||
             (u.closed == 0) != (u.removed == 0))
           __builtin_trap();

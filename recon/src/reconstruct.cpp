@@ -427,6 +427,22 @@ ReconstructResult reconstruct(std::span<const Vec3> points, const ReconstructOpt
         res.untangle = untangle_gaps(res.mesh, gap_fill, vertex_spacing, res.gaps);
     }
   }
+  if (!res.untangle.renumber.empty()) {
+    // Vertices the untangling left out are outliers now (as measured, for a feature's), before
+    // the far points.
+    std::vector<Vec3> left_out;
+    for (std::size_t v = 0; v < reduced.size(); ++v) {
+      if (remap[v] == 0xffffffffu) continue;
+      remap[v] = res.untangle.renumber[remap[v]];
+      if (remap[v] != 0xffffffffu) continue;
+      const auto m =
+          std::lower_bound(measured.begin(), measured.end(), static_cast<std::uint32_t>(v),
+                           [](const auto& a, std::uint32_t key) { return a.first < key; });
+      left_out.push_back(m != measured.end() && m->first == v ? m->second : reduced[v]);
+    }
+    res.outliers.insert(res.outliers.end() - static_cast<std::ptrdiff_t>(res.far_points),
+                        left_out.begin(), left_out.end());
+  }
   if (!measured.empty()) {
     // The features' vertices back where they were measured (the front meshed their projections).
     std::vector<std::pair<std::uint32_t, Vec3>> targets;

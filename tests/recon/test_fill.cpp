@@ -552,15 +552,17 @@ TEST_CASE("untangle_gaps leaves a gap alone when untangling it would drop a poin
   CHECK(m.vertices.size() == before.vertices.size());
 }
 
-TEST_CASE("untangle_gaps refuses, without a trial, a removal that would split a vertex's fan",
+TEST_CASE("untangle_gaps widens a removal that would split a vertex's fan, and refuses what "
+          "no fill mends",
           "[recon][fill]") {
   // A flat 4 x 4 grid of unit squares split along their diagonals; the "gap" is given by the
   // triangles its patch would cross. Around the interior vertex 12 (at 2, 2) the six triangles
   // run 13-18, 18-17, 17-11, 11-6, 6-7, 7-13; around the border vertex 2 three run 1-7, 7-8,
-  // 8-3. Removing two of 12's that are not neighbours, or the middle one of 2's, leaves that
-  // vertex two fans, which no fill mends: refused from its own triangles. Removing two
-  // neighbours (a quad hole inside, a notch at the border) is tried in full and refused there:
-  // closing the quad leaves as many loops as before, and the notch is part of the border loop.
+  // 8-3. Removing two of 12's that are not neighbours leaves that vertex two fans: the smaller
+  // one goes too (widened), and the trial then closes only the hole it made (no fewer loops),
+  // so it is refused. Removing the middle one of 2's splits it the same way, but the widened
+  // removal opens the border loop, which no fill closes: not tried (unfillable). Removing two
+  // neighbours (a quad hole inside, a notch at the border) is tried as it is and refused.
   Mesh m;
   for (std::uint32_t j = 0; j < 5; ++j)
     for (std::uint32_t i = 0; i < 5; ++i) m.vertices.emplace_back(i, j, 0);
@@ -570,12 +572,13 @@ TEST_CASE("untangle_gaps refuses, without a trial, a removal that would split a 
       m.triangles.push_back({v, v + 1, v + 6});
       m.triangles.push_back({v, v + 6, v + 5});
     }
-  const auto [removed, split] = GENERATE(table<std::vector<Triangle>, std::size_t>({
-      {{Triangle{12, 13, 18}, Triangle{11, 12, 17}}, 1},  // apart around vertex 12
-      {{Triangle{2, 8, 7}}, 1},                           // the middle of border vertex 2's fan
-      {{Triangle{12, 13, 18}, Triangle{12, 18, 17}}, 0},  // neighbours: a quad hole
-      {{Triangle{1, 2, 7}, Triangle{1, 7, 6}}, 0},        // neighbours at the border: a notch
-  }));
+  const auto [removed, widened, unfillable] =
+      GENERATE(table<std::vector<Triangle>, std::size_t, std::size_t>({
+          {{Triangle{12, 13, 18}, Triangle{11, 12, 17}}, 1, 0},  // apart around vertex 12
+          {{Triangle{2, 8, 7}}, 0, 1},  // the middle of border vertex 2's fan
+          {{Triangle{12, 13, 18}, Triangle{12, 18, 17}}, 0, 0},  // neighbours: a quad hole
+          {{Triangle{1, 2, 7}, Triangle{1, 7, 6}}, 0, 0},  // neighbours at the border: a notch
+      }));
   FillStats first;
   first.crossing = 1;
   std::vector<std::uint32_t>& crossed = first.crossed.emplace_back();
@@ -594,9 +597,190 @@ TEST_CASE("untangle_gaps refuses, without a trial, a removal that would split a 
   const scanmesh::recon::UntangleStats u = scanmesh::recon::untangle_gaps(m, opt, spacing, first);
   INFO("removed " << removed.size() << " triangles, the first " << removed[0][0] << "-"
                   << removed[0][1] << "-" << removed[0][2]);
-  CHECK(u.split_fans == split);
+  CHECK(u.widened == widened);
+  CHECK(u.unfillable == unfillable);
+  CHECK(u.split_fans == 0);
   CHECK(u.removed == 0);
   CHECK(u.closed == 0);
+  CHECK(u.dropped.empty());
+  CHECK(u.renumber.empty());
+  CHECK(m.triangles == before.triangles);
+  CHECK(m.vertices == before.vertices);
+}
+
+TEST_CASE("untangle_gaps refuses, without a trial, a removal that splits a fan into large ones",
+          "[recon][fill]") {
+  // A disk of 40 triangles around its centre; removing two opposite ones leaves the centre two
+  // fans of 19: taking in the smaller one would remove more than kUntangleMaxTriangles.
+  Mesh m;
+  constexpr std::uint32_t kN = 40;
+  m.vertices.emplace_back(0, 0, 0);
+  for (std::uint32_t k = 0; k < kN; ++k) {
+    const double a = 2 * std::numbers::pi * k / kN;
+    m.vertices.emplace_back(std::cos(a), std::sin(a), 0);
+  }
+  for (std::uint32_t k = 0; k < kN; ++k) m.triangles.push_back({0, 1 + k, 1 + (k + 1) % kN});
+  FillStats first;
+  first.crossing = 1;
+  first.crossed.push_back({0, kN / 2});
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  FillOptions opt;
+  opt.max_edges = 8;
+  opt.refine = false;
+  opt.max_perimeter_spacings = 10;
+  const Mesh before = m;
+  const scanmesh::recon::UntangleStats u = scanmesh::recon::untangle_gaps(m, opt, spacing, first);
+  CHECK(u.split_fans == 1);
+  CHECK(u.widened == 0);
+  CHECK(u.removed == 0);
+  CHECK(m.triangles == before.triangles);
+}
+
+namespace {
+
+/// A flat 6 x 6 grid of unit squares (vertex j * 7 + i at (i, j, 0), squares split along
+/// their diagonals) with the square at (3, 3) left out (a gap, 24-25-32-31) and a flap on the
+/// gap's edge 24-25, above the gap: one triangle 24-25-s1, a second around vertex 24,
+/// 24-s1-s2, and a third s2-s1-s3 beyond, 0.6-0.8 above the grid's plane (as a fold of another
+/// sheet meshed onto a gap's rim). Returns the flap's vertices.
+std::vector<std::uint32_t> flapped_grid(Mesh& m, int flap_triangles) {
+  for (std::uint32_t j = 0; j < 7; ++j)
+    for (std::uint32_t i = 0; i < 7; ++i) m.vertices.emplace_back(i, j, 0);
+  for (std::uint32_t j = 0; j < 6; ++j)
+    for (std::uint32_t i = 0; i < 6; ++i) {
+      if (i == 3 && j == 3) continue;
+      const std::uint32_t v = j * 7 + i;
+      m.triangles.push_back({v, v + 1, v + 8});
+      m.triangles.push_back({v, v + 8, v + 7});
+    }
+  std::vector<std::uint32_t> flap;
+  auto add = [&](double x, double y, double z) {
+    flap.push_back(static_cast<std::uint32_t>(m.vertices.size()));
+    m.vertices.emplace_back(x, y, z);
+  };
+  add(3.5, 3.3, 0.6);
+  m.triangles.push_back({24, 25, flap[0]});
+  if (flap_triangles >= 2) {
+    add(3.2, 3.6, 0.7);
+    m.triangles.push_back({24, flap[0], flap[1]});
+  }
+  if (flap_triangles >= 3) {
+    add(3.6, 3.7, 0.8);
+    m.triangles.push_back({flap[1], flap[0], flap[2]});
+  }
+  return flap;
+}
+
+/// The gap's patch taken to cross the grid's triangle 17-25-24 beside it (as a gap's patch
+/// crosses a fold's triangle), with the options of the gap closing.
+FillStats crossing_17_25_24(const Mesh& m) {
+  FillStats first;
+  first.crossing = 1;
+  const auto it = std::find(m.triangles.begin(), m.triangles.end(), Triangle{17, 25, 24});
+  REQUIRE(it != m.triangles.end());
+  first.crossed.push_back({static_cast<std::uint32_t>(it - m.triangles.begin())});
+  return first;
+}
+
+FillOptions gap_options() {
+  FillOptions opt;
+  opt.max_edges = 8;
+  opt.refine = false;
+  opt.max_perimeter_spacings = 10;
+  return opt;
+}
+
+}  // namespace
+
+TEST_CASE("untangle_gaps takes out a flap whose removal the gap needs, its vertices then "
+          "dropped",
+          "[recon][fill]") {
+  // Removing 17-25-24 alone would leave vertex 24 (and 25) a fan in the grid and the flap's
+  // fan: the flap goes too. Its vertices lie on no patch and leave the mesh; the gap and the
+  // removed triangle make one 5-edge loop, closed.
+  const int flap_triangles = GENERATE(1, 2);
+  Mesh m;
+  const std::vector<std::uint32_t> flap = flapped_grid(m, flap_triangles);
+  REQUIRE(analyze(m).boundary_loops == 2);
+  REQUIRE(analyze(m).non_manifold_vertices == 0);
+  REQUIRE(find_self_intersections(m).pairs == 0);
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  const Mesh before = m;
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_17_25_24(m));
+  CHECK(u.widened == 1);
+  CHECK(u.unfillable == 0);
+  CHECK(u.split_fans == 0);
+  CHECK(u.removed == 1 + static_cast<std::size_t>(flap_triangles));
+  CHECK(u.closed == 1);
+  CHECK(u.reinserted == 0);
+  // The flap's vertices, the last ones, are gone and reported; the grid's keep their indices.
+  REQUIRE(u.dropped.size() == flap.size());
+  for (std::size_t k = 0; k < flap.size(); ++k) CHECK(u.dropped[k] == before.vertices[flap[k]]);
+  REQUIRE(u.renumber.size() == before.vertices.size());
+  for (std::uint32_t v = 0; v < 49; ++v) CHECK(u.renumber[v] == v);
+  for (std::uint32_t v : flap) CHECK(u.renumber[v] == scanmesh::recon::kNoVertex);
+  REQUIRE(m.vertices.size() == 49);
+  CHECK(std::equal(m.vertices.begin(), m.vertices.end(), before.vertices.begin()));
+  const auto r = analyze(m);
+  CHECK(r.boundary_loops == 1);
+  CHECK(r.components == 1);
+  CHECK(r.non_manifold_edges == 0);
+  CHECK(r.non_manifold_vertices == 0);
+  CHECK(r.orientation_consistent);
+  CHECK(r.referenced_vertices == m.vertices.size());
+  CHECK(r.genus == 0);
+  CHECK(find_self_intersections(m).pairs == 0);
+  // The grid's 70 triangles less 17-25-24, and the 5-edge loop's three: a flat square again.
+  CHECK(m.triangles.size() == 72);
+  for (const Triangle& t : m.triangles) CHECK(m.vertices[t[0]].z() == 0);
+}
+
+TEST_CASE("untangle_gaps leaves a flap that a removal would cut loose", "[recon][fill]") {
+  // The flap's third triangle touches vertex 24 through neither fan: removing the two around 24
+  // would leave it a piece of its own, so the trial is refused (as many components).
+  Mesh m;
+  (void)flapped_grid(m, 3);
+  REQUIRE(analyze(m).boundary_loops == 2);
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  const Mesh before = m;
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_17_25_24(m));
+  CHECK(u.widened == 1);
+  CHECK(u.removed == 0);
+  CHECK(u.closed == 0);
+  CHECK(u.dropped.empty());
+  CHECK(m.triangles == before.triangles);
+  CHECK(m.vertices == before.vertices);
+}
+
+TEST_CASE("untangle_gaps does not try a widened removal whose loop no fill closes",
+          "[recon][fill]") {
+  // The flap on the grid's border edge 3-4 instead, the patch taken to cross 3-4-11 across it:
+  // the removal opens the border loop (24 edges), which the gap closing never closes.
+  Mesh m;
+  for (std::uint32_t j = 0; j < 7; ++j)
+    for (std::uint32_t i = 0; i < 7; ++i) m.vertices.emplace_back(i, j, 0);
+  for (std::uint32_t j = 0; j < 6; ++j)
+    for (std::uint32_t i = 0; i < 6; ++i) {
+      const std::uint32_t v = j * 7 + i;
+      m.triangles.push_back({v, v + 1, v + 8});
+      m.triangles.push_back({v, v + 8, v + 7});
+    }
+  m.vertices.emplace_back(3.5, -0.8, 0.6);
+  m.triangles.push_back({4, 3, 49});
+  FillStats first;
+  first.crossing = 1;
+  const auto it = std::find(m.triangles.begin(), m.triangles.end(), Triangle{3, 4, 11});
+  REQUIRE(it != m.triangles.end());
+  first.crossed.push_back({static_cast<std::uint32_t>(it - m.triangles.begin())});
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  const Mesh before = m;
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, first);
+  CHECK(u.unfillable == 1);
+  CHECK(u.widened == 0);
+  CHECK(u.removed == 0);
   CHECK(m.triangles == before.triangles);
   CHECK(m.vertices == before.vertices);
 }

@@ -70,7 +70,27 @@ struct UntangleStats {
   /// Gaps left as they are without a trial: removing the triangles their patch crosses would
   /// leave a vertex with two fans, which no fill mends.
   std::size_t split_fans = 0;
+  /// Gaps tried with a removal widened to the smaller fans of a corner it split
+  /// (kUntangleRounds), kept or not (not counting `unfillable` ones).
+  std::size_t widened = 0;
+  /// Widened gaps not tried: a loop the removal would leave is one no fill closes (too many
+  /// edges or too long for its spacing).
+  std::size_t unfillable = 0;
+  /// Vertices of the removed triangles that no patch could take back (at most
+  /// kUntangleMaxDropped per widened gap): no longer in the mesh, reported as outliers.
+  std::vector<Vec3> dropped;
+  /// When `dropped` is not empty: each vertex's new index (kNoVertex for a dropped one), as the
+  /// mesh's vertices were closed up; empty otherwise (no index changed).
+  std::vector<std::uint32_t> renumber;
 };
+
+inline constexpr std::uint32_t kNoVertex = 0xffffffffu;
+/// A removal that splits a corner's fan takes in the corner's smaller fans, at most this many
+/// rounds and kUntangleMaxTriangles triangles in all.
+inline constexpr int kUntangleRounds = 3;
+inline constexpr std::size_t kUntangleMaxTriangles = 16;
+/// Of a widened removal's vertices, at most this many may be left out.
+inline constexpr std::size_t kUntangleMaxDropped = 3;
 
 /// untangle_gaps tries at most this many gaps. Each trial checks the whole mesh again (its loops,
 /// components and crossings), so a scan with hundreds of such gaps took minutes (a volume of
@@ -86,12 +106,16 @@ inline constexpr std::size_t kMaxUntangledGaps = 16;
 /// from the fill_holes call that left it open, with the same options and spacing), closes the
 /// loops that leaves with fill_holes, and puts each vertex the removal stranded back where it
 /// lies (within a quarter of its spacing of the plane): into a patch triangle, split in three,
-/// or into one of its edges, split with the triangles on both sides. Gap by gap, the result is
-/// kept only when it is manifold and consistently oriented, has fewer boundary loops and as many
-/// components, uses every vertex the mesh used, and nothing new crosses the mesh; otherwise that
-/// gap stays as it is. A gap whose patch crosses more than 2 * options.max_edges triangles is
-/// left alone, and so is every gap after the first kMaxUntangledGaps tried (counted in
-/// `skipped`). The genus can change (a spike across a wall is a handle).
+/// or into one of its edges, split with the triangles on both sides. A removal that would leave
+/// a corner with two fans takes in that corner's smaller fans (a flap of a wrongly meshed fold;
+/// at most kUntangleRounds rounds and kUntangleMaxTriangles triangles, or the gap is counted in
+/// `split_fans` and left). Gap by gap, the result is kept only when it is manifold and
+/// consistently oriented, has fewer boundary loops and as many components, nothing new crosses
+/// the mesh, and it uses every vertex the mesh used, except, for a widened removal, at most
+/// kUntangleMaxDropped that lie on no patch: those leave the mesh (`dropped`, `renumber`);
+/// otherwise that gap stays as it is. A gap whose patch crosses more than 2 * options.max_edges
+/// triangles is left alone, and so is every gap after the first kMaxUntangledGaps tried
+/// (counted in `skipped`). The genus can change (a spike across a wall is a handle).
 UntangleStats untangle_gaps(Mesh& mesh, const FillOptions& options,
                             std::span<const float> vertex_spacing, const FillStats& first);
 
