@@ -879,8 +879,8 @@ bool untangle_one(Mesh& mesh, std::optional<MeshReport>& before, const detail::V
   // mesh, reported with the outliers.
   st.widened += widened ? 1 : 0;
   const std::size_t left_out = stranded.size() - reinserted;
-  const MeshReport after = analyze(trial);
   if (left_out > (widened ? kUntangleMaxDropped : 0)) return false;
+  const MeshReport after = analyze(trial);
   if (after.non_manifold_edges > 0 || after.non_manifold_vertices > 0 ||
       !after.orientation_consistent || after.boundary_loops >= before->boundary_loops ||
       after.components != before->components ||
