@@ -688,6 +688,33 @@ std::vector<std::uint32_t> smaller_fans(const Mesh& mesh, const detail::VertexTr
   return out;
 }
 
+/// The triangles of an edge-connected piece of at most kUntangleSpeck triangles that vertex v's
+/// triangles other than `removed` (sorted) make, which a removal cut loose (empty when none).
+std::vector<std::uint32_t> speck_at(const Mesh& mesh, const detail::VertexTriangles& vt,
+                                    std::span<const std::uint32_t> removed, std::uint32_t v) {
+  auto kept = [&](std::uint32_t t) {
+    return !std::binary_search(removed.begin(), removed.end(), t);
+  };
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t t0 : vt.of(v)) {
+    if (!kept(t0) || std::find(out.begin(), out.end(), t0) != out.end()) continue;
+    std::vector<std::uint32_t> piece{t0};
+    for (std::size_t q = 0; q < piece.size() && piece.size() <= kUntangleSpeck; ++q) {
+      const Triangle& t = mesh.triangles[piece[q]];
+      for (int k = 0; k < 3 && piece.size() <= kUntangleSpeck; ++k) {
+        const std::uint32_t a = t[k], b = t[(k + 1) % 3];
+        for (std::uint32_t o : vt.of(a)) {
+          if (!kept(o) || std::find(piece.begin(), piece.end(), o) != piece.end()) continue;
+          const Triangle& ot = mesh.triangles[o];
+          if (ot[0] == b || ot[1] == b || ot[2] == b) piece.push_back(o);
+        }
+      }
+    }
+    if (piece.size() <= kUntangleSpeck) out.insert(out.end(), piece.begin(), piece.end());
+  }
+  return out;
+}
+
 /// Whether every boundary loop through the corners `loose` of the triangles `removed` (sorted),
 /// once they are gone, is one fill_holes may close: at least 3 and at most options.max_edges
 /// edges, a perimeter within options.max_perimeter_spacings of its spacing. Walked on the mesh's
@@ -774,7 +801,11 @@ bool untangle_one(Mesh& mesh, std::optional<MeshReport>& before, const detail::V
     for (std::uint32_t v : loose) {
       const auto extra = smaller_fans(mesh, vt, crossed, v, undecided);
       more.insert(more.end(), extra.begin(), extra.end());
+      const auto speck = speck_at(mesh, vt, crossed, v);
+      more.insert(more.end(), speck.begin(), speck.end());
     }
+    std::sort(more.begin(), more.end());
+    more.erase(std::unique(more.begin(), more.end()), more.end());
     if (undecided) return false;
     if (more.empty()) break;
     if (round == kUntangleRounds || crossed.size() + more.size() > kUntangleMaxTriangles) {

@@ -641,8 +641,8 @@ namespace {
 /// A flat 6 x 6 grid of unit squares (vertex j * 7 + i at (i, j, 0), squares split along
 /// their diagonals) with the square at (3, 3) left out (a gap, 24-25-32-31) and a flap on the
 /// gap's edge 24-25, above the gap: one triangle 24-25-s1, a second around vertex 24,
-/// 24-s1-s2, and a third s2-s1-s3 beyond, 0.6-0.8 above the grid's plane (as a fold of another
-/// sheet meshed onto a gap's rim). Returns the flap's vertices.
+/// 24-s1-s2, and beyond them s2-s1-s3, s4-s3-s1 and s3-s4-s5, 0.6-1.0 above the grid's plane
+/// (as a fold of another sheet meshed onto a gap's rim). Returns the flap's vertices.
 std::vector<std::uint32_t> flapped_grid(Mesh& m, int flap_triangles) {
   for (std::uint32_t j = 0; j < 7; ++j)
     for (std::uint32_t i = 0; i < 7; ++i) m.vertices.emplace_back(i, j, 0);
@@ -667,6 +667,14 @@ std::vector<std::uint32_t> flapped_grid(Mesh& m, int flap_triangles) {
   if (flap_triangles >= 3) {
     add(3.6, 3.7, 0.8);
     m.triangles.push_back({flap[1], flap[0], flap[2]});
+  }
+  if (flap_triangles >= 4) {
+    add(3.8, 3.4, 0.9);
+    m.triangles.push_back({flap[3], flap[2], flap[0]});
+  }
+  if (flap_triangles >= 5) {
+    add(3.9, 3.9, 1.0);
+    m.triangles.push_back({flap[2], flap[3], flap[4]});
   }
   return flap;
 }
@@ -696,9 +704,10 @@ TEST_CASE("untangle_gaps takes out a flap whose removal the gap needs, its verti
           "dropped",
           "[recon][fill]") {
   // Removing 17-25-24 alone would leave vertex 24 (and 25) a fan in the grid and the flap's
-  // fan: the flap goes too. Its vertices lie on no patch and leave the mesh; the gap and the
+  // fan: the flap goes too, and so does a third triangle beyond it that the removal would cut
+  // loose (a speck). The flap's vertices lie on no patch and leave the mesh; the gap and the
   // removed triangle make one 5-edge loop, closed.
-  const int flap_triangles = GENERATE(1, 2);
+  const int flap_triangles = GENERATE(1, 2, 3);
   Mesh m;
   const std::vector<std::uint32_t> flap = flapped_grid(m, flap_triangles);
   REQUIRE(analyze(m).boundary_loops == 2);
@@ -736,11 +745,13 @@ TEST_CASE("untangle_gaps takes out a flap whose removal the gap needs, its verti
   for (const Triangle& t : m.triangles) CHECK(m.vertices[t[0]].z() == 0);
 }
 
-TEST_CASE("untangle_gaps leaves a flap that a removal would cut loose", "[recon][fill]") {
-  // The flap's third triangle touches vertex 24 through neither fan: removing the two around 24
-  // would leave it a piece of its own, so the trial is refused (as many components).
+TEST_CASE("untangle_gaps leaves a flap that a removal would cut a piece off", "[recon][fill]") {
+  // Beyond the two flap triangles around vertex 24, three more: removing the two would leave
+  // them a piece of their own, larger than a speck, so the trial is refused (as many
+  // components).
   Mesh m;
-  (void)flapped_grid(m, 3);
+  (void)flapped_grid(m, 5);
+  REQUIRE(analyze(m).orientation_consistent);
   REQUIRE(analyze(m).boundary_loops == 2);
   const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;

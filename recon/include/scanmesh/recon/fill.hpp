@@ -90,7 +90,10 @@ inline constexpr std::uint32_t kNoVertex = 0xffffffffu;
 inline constexpr int kUntangleRounds = 3;
 inline constexpr std::size_t kUntangleMaxTriangles = 16;
 /// Of a widened removal's vertices, at most this many may be left out.
-inline constexpr std::size_t kUntangleMaxDropped = 3;
+inline constexpr std::size_t kUntangleMaxDropped = 4;
+/// A piece of at most this many triangles that a removal cuts loose goes with it (as the
+/// front's specks).
+inline constexpr std::size_t kUntangleSpeck = 2;
 
 /// untangle_gaps tries at most this many gaps. Each trial checks the whole mesh again (its loops,
 /// components and crossings), so a scan with hundreds of such gaps took minutes (a volume of
@@ -107,9 +110,11 @@ inline constexpr std::size_t kMaxUntangledGaps = 16;
 /// loops that leaves with fill_holes, and puts each vertex the removal stranded back where it
 /// lies (within a quarter of its spacing of the plane): into a patch triangle, split in three,
 /// or into one of its edges, split with the triangles on both sides. A removal that would leave
-/// a corner with two fans takes in that corner's smaller fans (a flap of a wrongly meshed fold;
-/// at most kUntangleRounds rounds and kUntangleMaxTriangles triangles, or the gap is counted in
-/// `split_fans` and left). Gap by gap, the result is kept only when it is manifold and
+/// a corner with two fans takes in that corner's smaller fans, and a piece of at most
+/// kUntangleSpeck triangles it would cut loose (a flap of a wrongly meshed fold; at most
+/// kUntangleRounds rounds and kUntangleMaxTriangles triangles, or the gap is counted in
+/// `split_fans` and left); it is tried only when every loop it leaves is one the fill may
+/// close (or counted in `unfillable`). Gap by gap, the result is kept only when it is manifold and
 /// consistently oriented, has fewer boundary loops and as many components, nothing new crosses
 /// the mesh, and it uses every vertex the mesh used, except, for a widened removal, at most
 /// kUntangleMaxDropped that lie on no patch: those leave the mesh (`dropped`, `renumber`);
