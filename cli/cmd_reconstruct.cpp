@@ -321,7 +321,8 @@ int run_reconstruct(const ReconstructArgs& args) {
     if (res.untangle.closed > 0)
       std::cout << "untangled gaps   " << res.untangle.closed << " (" << res.untangle.removed
                 << " triangles reaching through them removed and closed again, "
-                << res.untangle.reinserted << " points put back"
+                << res.untangle.reinserted
+                << (res.untangle.reinserted == 1 ? " point put back" : " points put back")
                 << (res.untangle.dropped.empty()
                         ? std::string()
                         : ", " + std::to_string(res.untangle.dropped.size()) +

@@ -68,7 +68,8 @@ struct UntangleStats {
   std::size_t reinserted = 0;  ///< vertices the removal stranded, put back into a patch
   std::size_t skipped = 0;     ///< gaps not tried: beyond kMaxUntangledGaps
   /// Gaps left as they are without a trial: removing the triangles their patch crosses would
-  /// leave a vertex with two fans, which no fill mends.
+  /// leave a vertex with two fans, which no fill mends, and taking in the smaller fans would
+  /// take more than kUntangleRounds rounds or kUntangleMaxTriangles triangles.
   std::size_t split_fans = 0;
   /// Gaps tried with a removal widened to the smaller fans of a corner it split
   /// (kUntangleRounds), kept or not (not counting `unfillable` ones).
