@@ -552,6 +552,51 @@ TEST_CASE("untangle_gaps leaves a gap alone when untangling it would drop a poin
   CHECK(m.vertices.size() == before.vertices.size());
 }
 
+namespace {
+
+/// A flat grid of n x n unit squares (vertex j * (n + 1) + i at (i, j, 0)), each split along its
+/// diagonal (v, v + 1, v + n + 2 and v, v + n + 2, v + n + 1), without the square at (hole_i,
+/// hole_j) when hole_i < n.
+Mesh flat_grid(std::uint32_t n, std::uint32_t hole_i = ~0u, std::uint32_t hole_j = ~0u) {
+  Mesh m;
+  for (std::uint32_t j = 0; j <= n; ++j)
+    for (std::uint32_t i = 0; i <= n; ++i) m.vertices.emplace_back(i, j, 0);
+  for (std::uint32_t j = 0; j < n; ++j)
+    for (std::uint32_t i = 0; i < n; ++i) {
+      if (i == hole_i && j == hole_j) continue;
+      const std::uint32_t v = j * (n + 1) + i;
+      m.triangles.push_back({v, v + 1, v + n + 2});
+      m.triangles.push_back({v, v + n + 2, v + n + 1});
+    }
+  return m;
+}
+
+/// The result of a gap closing whose one gap was left open because its patch would cross the
+/// triangles `crossed` of m (as untangle_gaps takes it).
+FillStats crossing_gap(const Mesh& m, const std::vector<Triangle>& crossed) {
+  FillStats first;
+  first.crossing = 1;
+  std::vector<std::uint32_t>& ids = first.crossed.emplace_back();
+  for (const Triangle& t : crossed) {
+    const auto it = std::find(m.triangles.begin(), m.triangles.end(), t);
+    REQUIRE(it != m.triangles.end());
+    ids.push_back(static_cast<std::uint32_t>(it - m.triangles.begin()));
+  }
+  std::sort(ids.begin(), ids.end());
+  return first;
+}
+
+/// The options of the gap closing (no new vertex, perimeter at most 10 spacings).
+FillOptions gap_options() {
+  FillOptions opt;
+  opt.max_edges = 8;
+  opt.refine = false;
+  opt.max_perimeter_spacings = 10;
+  return opt;
+}
+
+}  // namespace
+
 TEST_CASE("untangle_gaps widens a removal that would split a vertex's fan, and refuses what "
           "no fill mends",
           "[recon][fill]") {
@@ -563,15 +608,7 @@ TEST_CASE("untangle_gaps widens a removal that would split a vertex's fan, and r
   // so it is refused. Removing the middle one of 2's splits it the same way, but the widened
   // removal opens the border loop, which no fill closes: not tried (unfillable). Removing two
   // neighbours (a quad hole inside, a notch at the border) is tried as it is and refused.
-  Mesh m;
-  for (std::uint32_t j = 0; j < 5; ++j)
-    for (std::uint32_t i = 0; i < 5; ++i) m.vertices.emplace_back(i, j, 0);
-  for (std::uint32_t j = 0; j < 4; ++j)
-    for (std::uint32_t i = 0; i < 4; ++i) {
-      const std::uint32_t v = j * 5 + i;
-      m.triangles.push_back({v, v + 1, v + 6});
-      m.triangles.push_back({v, v + 6, v + 5});
-    }
+  Mesh m = flat_grid(4);
   const auto [removed, widened, unfillable] =
       GENERATE(table<std::vector<Triangle>, std::size_t, std::size_t>({
           {{Triangle{12, 13, 18}, Triangle{11, 12, 17}}, 1, 0},  // apart around vertex 12
@@ -579,22 +616,11 @@ TEST_CASE("untangle_gaps widens a removal that would split a vertex's fan, and r
           {{Triangle{12, 13, 18}, Triangle{12, 18, 17}}, 0, 0},  // neighbours: a quad hole
           {{Triangle{1, 2, 7}, Triangle{1, 7, 6}}, 0, 0},  // neighbours at the border: a notch
       }));
-  FillStats first;
-  first.crossing = 1;
-  std::vector<std::uint32_t>& crossed = first.crossed.emplace_back();
-  for (const Triangle& t : removed) {
-    const auto it = std::find(m.triangles.begin(), m.triangles.end(), t);
-    REQUIRE(it != m.triangles.end());
-    crossed.push_back(static_cast<std::uint32_t>(it - m.triangles.begin()));
-  }
-  std::sort(crossed.begin(), crossed.end());
+  const FillStats first = crossing_gap(m, removed);
   const std::vector<float> spacing(m.vertices.size(), 1.0f);
-  FillOptions opt;
-  opt.max_edges = 8;
-  opt.refine = false;
-  opt.max_perimeter_spacings = 10;
   const Mesh before = m;
-  const scanmesh::recon::UntangleStats u = scanmesh::recon::untangle_gaps(m, opt, spacing, first);
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, first);
   INFO("removed " << removed.size() << " triangles, the first " << removed[0][0] << "-"
                   << removed[0][1] << "-" << removed[0][2]);
   CHECK(u.widened == widened);
@@ -620,16 +646,11 @@ TEST_CASE("untangle_gaps refuses, without a trial, a removal that splits a fan i
     m.vertices.emplace_back(std::cos(a), std::sin(a), 0);
   }
   for (std::uint32_t k = 0; k < kN; ++k) m.triangles.push_back({0, 1 + k, 1 + (k + 1) % kN});
-  FillStats first;
-  first.crossing = 1;
-  first.crossed.push_back({0, kN / 2});
+  const FillStats first = crossing_gap(m, {m.triangles[0], m.triangles[kN / 2]});
   const std::vector<float> spacing(m.vertices.size(), 1.0f);
-  FillOptions opt;
-  opt.max_edges = 8;
-  opt.refine = false;
-  opt.max_perimeter_spacings = 10;
   const Mesh before = m;
-  const scanmesh::recon::UntangleStats u = scanmesh::recon::untangle_gaps(m, opt, spacing, first);
+  const scanmesh::recon::UntangleStats u =
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, first);
   CHECK(u.split_fans == 1);
   CHECK(u.widened == 0);
   CHECK(u.removed == 0);
@@ -644,15 +665,7 @@ namespace {
 /// 24-s1-s2, and beyond them s2-s1-s3, s4-s3-s1 and s3-s4-s5, 0.6-1.0 above the grid's plane
 /// (as a fold of another sheet meshed onto a gap's rim). Returns the flap's vertices.
 std::vector<std::uint32_t> flapped_grid(Mesh& m, int flap_triangles) {
-  for (std::uint32_t j = 0; j < 7; ++j)
-    for (std::uint32_t i = 0; i < 7; ++i) m.vertices.emplace_back(i, j, 0);
-  for (std::uint32_t j = 0; j < 6; ++j)
-    for (std::uint32_t i = 0; i < 6; ++i) {
-      if (i == 3 && j == 3) continue;
-      const std::uint32_t v = j * 7 + i;
-      m.triangles.push_back({v, v + 1, v + 8});
-      m.triangles.push_back({v, v + 8, v + 7});
-    }
+  m = flat_grid(6, 3, 3);
   std::vector<std::uint32_t> flap;
   auto add = [&](double x, double y, double z) {
     flap.push_back(static_cast<std::uint32_t>(m.vertices.size()));
@@ -679,25 +692,6 @@ std::vector<std::uint32_t> flapped_grid(Mesh& m, int flap_triangles) {
   return flap;
 }
 
-/// The gap's patch taken to cross the grid's triangle 17-25-24 beside it (as a gap's patch
-/// crosses a fold's triangle), with the options of the gap closing.
-FillStats crossing_17_25_24(const Mesh& m) {
-  FillStats first;
-  first.crossing = 1;
-  const auto it = std::find(m.triangles.begin(), m.triangles.end(), Triangle{17, 25, 24});
-  REQUIRE(it != m.triangles.end());
-  first.crossed.push_back({static_cast<std::uint32_t>(it - m.triangles.begin())});
-  return first;
-}
-
-FillOptions gap_options() {
-  FillOptions opt;
-  opt.max_edges = 8;
-  opt.refine = false;
-  opt.max_perimeter_spacings = 10;
-  return opt;
-}
-
 }  // namespace
 
 TEST_CASE("untangle_gaps takes out a flap whose removal the gap needs, its vertices then "
@@ -716,7 +710,7 @@ TEST_CASE("untangle_gaps takes out a flap whose removal the gap needs, its verti
   const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
   const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_17_25_24(m));
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_gap(m, {{17, 25, 24}}));
   CHECK(u.widened == 1);
   CHECK(u.unfillable == 0);
   CHECK(u.split_fans == 0);
@@ -756,7 +750,7 @@ TEST_CASE("untangle_gaps leaves a flap that a removal would cut a piece off", "[
   const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
   const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_17_25_24(m));
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_gap(m, {{17, 25, 24}}));
   CHECK(u.widened == 1);
   CHECK(u.removed == 0);
   CHECK(u.closed == 0);
@@ -769,26 +763,13 @@ TEST_CASE("untangle_gaps does not try a widened removal whose loop no fill close
           "[recon][fill]") {
   // The flap on the grid's border edge 3-4 instead, the patch taken to cross 3-4-11 across it:
   // the removal opens the border loop (24 edges), which the gap closing never closes.
-  Mesh m;
-  for (std::uint32_t j = 0; j < 7; ++j)
-    for (std::uint32_t i = 0; i < 7; ++i) m.vertices.emplace_back(i, j, 0);
-  for (std::uint32_t j = 0; j < 6; ++j)
-    for (std::uint32_t i = 0; i < 6; ++i) {
-      const std::uint32_t v = j * 7 + i;
-      m.triangles.push_back({v, v + 1, v + 8});
-      m.triangles.push_back({v, v + 8, v + 7});
-    }
+  Mesh m = flat_grid(6);
   m.vertices.emplace_back(3.5, -0.8, 0.6);
   m.triangles.push_back({4, 3, 49});
-  FillStats first;
-  first.crossing = 1;
-  const auto it = std::find(m.triangles.begin(), m.triangles.end(), Triangle{3, 4, 11});
-  REQUIRE(it != m.triangles.end());
-  first.crossed.push_back({static_cast<std::uint32_t>(it - m.triangles.begin())});
   const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
   const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, first);
+      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_gap(m, {{3, 4, 11}}));
   CHECK(u.unfillable == 1);
   CHECK(u.widened == 0);
   CHECK(u.removed == 0);
