@@ -458,13 +458,19 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
               detail::quadric_row(d.dot(e1) * s, d.dot(e2) * s, row.data());
               return d.dot(normal);
             };
+            // The lower triangle of the normal equations, product by product as a rank-one
+            // update makes it (Eigen's rankUpdate took temporaries and a general kernel for
+            // these 6 x 6: a quarter of a merged multi-view run's instructions).
+            double lower[21] = {};
             for (std::size_t q = 0; q < n; ++q) {
               Eigen::Matrix<double, 6, 1> row;
               const double h = row_of(inside[q], row);
-              ata.selfadjointView<Eigen::Lower>().rankUpdate(row);
+              for (int i = 0, k = 0; i < 6; ++i)
+                for (int j = 0; j <= i; ++j, ++k) lower[k] += row[i] * row[j];
               ath += h * row;
             }
-            ata.triangularView<Eigen::StrictlyUpper>() = ata.transpose();
+            for (int i = 0, k = 0; i < 6; ++i)
+              for (int j = 0; j <= i; ++j, ++k) ata(i, j) = ata(j, i) = lower[k];
             // Principal curvatures of the fit (scaled coordinates): its Hessian's eigenvalues.
             auto max_curvature = [&] {
               const double a = 2 * coef[0], d = 2 * coef[2], b = coef[1];
