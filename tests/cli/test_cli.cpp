@@ -611,7 +611,8 @@ TEST_CASE("reconstruct --conf: the merged bunny scans keep only the base's five 
     return;
   }
   TempDir dir;
-  const RunResult r = run(dir, {"reconstruct", "--conf", *conf, "-o", dir / "bunny.ply", "--json"});
+  const RunResult r = run(dir, {"reconstruct", "--conf", *conf, "-o", dir / "bunny.ply",
+                                "--outliers", dir / "outliers.xyz", "--json"});
   INFO(describe(r));
   REQUIRE(r.status == 0);
   const json j = json_of(r);
@@ -627,6 +628,12 @@ TEST_CASE("reconstruct --conf: the merged bunny scans keep only the base's five 
   CHECK(j.at("vertices").get<std::size_t>() + j.at("outliers").get<std::size_t>() -
             j.at("far_points").get<std::size_t>() ==
         j.at("reduced_points").get<std::size_t>());
+  // The outliers file holds every one of them, the dropped points too.
+  std::ifstream outliers(dir / "outliers.xyz");
+  std::size_t lines = 0;
+  for (std::string line; std::getline(outliers, line);)
+    if (!line.empty() && line[0] != '#') ++lines;
+  CHECK(lines == j.at("outliers").get<std::size_t>());
   const json inspected = json_of(run(dir, {"inspect", dir / "bunny.ply", "--json"}));
   CHECK(inspected.at("boundary_loops") == 5);
   CHECK(inspected.at("non_manifold_edges") == 0);
