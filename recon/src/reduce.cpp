@@ -451,7 +451,7 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
             // mean does.
             const Vec3 e1 = normal.unitOrthogonal(), e2 = normal.cross(e1);
             const double s = 1.0 / radius;
-            Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+            Eigen::Matrix<double, 6, 6> ata;
             Eigen::Matrix<double, 6, 1> ath = Eigen::Matrix<double, 6, 1>::Zero(), coef;
             auto row_of = [&](std::uint32_t u, Eigen::Matrix<double, 6, 1>& row) {
               const Vec3 d(cx[u] - px, cy[u] - py, cz[u] - pz);

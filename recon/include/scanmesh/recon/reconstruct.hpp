@@ -88,8 +88,9 @@ struct ReconstructResult {
   std::size_t reduced_points = 0;  ///< points handed to the front
   double cube_mm = 0;              ///< cube edge used (0 = none)
   SpacingEstimate spacing;
-  /// Reduced points the front never reached, then the far points (input points far outside
-  /// the body of the cloud, see far_points in reduce.hpp: stray readings, not meshed).
+  /// Reduced points the front never reached, then those the gap untangling left out
+  /// (`untangle.dropped`), then the far points (input points far outside the body of the
+  /// cloud, see far_points in reduce.hpp: stray readings, not meshed).
   std::vector<Vec3> outliers;
   std::size_t far_points = 0;  ///< of which far points (the last ones in `outliers`)
   std::size_t seeds = 0, relaxed_triangles = 0, filled_gaps = 0, removed_fan_triangles = 0;
