@@ -393,6 +393,7 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
   }
   detail::BlockPoints block;
   std::vector<std::uint32_t> inside;
+  std::vector<double> fitted;  // the quadric's design rows and heights of a ball, 7 a point
   grid.for_each_cell(
       [&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t first, std::uint32_t last) {
         bool any = false;
@@ -462,12 +463,15 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
             // update makes it (Eigen's rankUpdate took temporaries and a general kernel for
             // these 6 x 6: a quarter of a merged multi-view run's instructions).
             double lower[21] = {};
+            if (fitted.size() < 7 * n) fitted.resize(7 * n);
             for (std::size_t q = 0; q < n; ++q) {
               Eigen::Matrix<double, 6, 1> row;
               const double h = row_of(inside[q], row);
               for (int i = 0, k = 0; i < 6; ++i)
                 for (int j = 0; j <= i; ++j, ++k) lower[k] += row[i] * row[j];
               ath += h * row;
+              std::copy(row.data(), row.data() + 6, fitted.data() + 7 * q);
+              fitted[7 * q + 6] = h;
             }
             for (int i = 0, k = 0; i < 6; ++i)
               for (int j = 0; j <= i; ++j, ++k) ata(i, j) = ata(j, i) = lower[k];
@@ -483,8 +487,8 @@ std::vector<Vec3> project_to_local_planes(std::span<const Vec3> input,
                 max_curvature() * kQuadricMinRadius <= radius) {
               double rss_plane = 0, rss_quadric = 0;
               for (std::size_t q = 0; q < n; ++q) {
-                Eigen::Matrix<double, 6, 1> row;
-                const double h = row_of(inside[q], row);
+                const Eigen::Map<const Eigen::Matrix<double, 6, 1>> row(fitted.data() + 7 * q);
+                const double h = fitted[7 * q + 6];
                 const double off_plane = h - height, off_quadric = h - row.dot(coef);
                 rss_plane += off_plane * off_plane;
                 rss_quadric += off_quadric * off_quadric;
