@@ -17,12 +17,8 @@
 namespace scanmesh::cli {
 namespace {
 
-struct DenoiseArgs {
-  std::string mesh;
-  std::string output;
+struct DenoiseArgs : MeshEditArgs {
   recon::DenoiseOptions options;
-  bool ascii = false;
-  bool json = false;
 };
 
 int run_denoise(const DenoiseArgs& args) {
@@ -41,32 +37,18 @@ int run_denoise(const DenoiseArgs& args) {
   write_mesh_file(mesh, args.output, args.ascii);
   const recon::MeshReport after = recon::analyze(mesh);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-  if (args.json) {
-    nlohmann::json j;
-    j["input"] = args.mesh;
-    j["output"] = args.output;
-    put_denoise(j, stats);
-    j["vertices"] = mesh.vertices.size();
-    j["triangles"] = mesh.triangles.size();
-    put_topology(j, after);
-    j["seconds_total"] = seconds;
-    std::cout << j.dump() << "\n";
-  } else {
-    std::cout << std::setprecision(4) << "noise            " << stats.noise_mm
-              << " (measured on the vertices unless given), normals' scatter " << stats.noise_deg
-              << " deg, range " << stats.feature_deg << " deg\n"
-              << "moved            " << stats.moved << " vertices, "
-              << stats.mean_move << " on average, " << stats.max_move << " at most ("
-              << stats.clamped << " cut to the largest move)\n"
-              << "left             " << stats.refused
-              << " vertices where they were (a move would fold or cross)\n"
-              << "vertices         " << mesh.vertices.size() << "\n"
-              << "triangles        " << mesh.triangles.size() << "\n"
-              << "boundary loops   " << after.boundary_loops << "\n"
-              << "genus            " << after.genus << "\n"
-              << "written          " << args.output << "\n"
-              << std::fixed << std::setprecision(3) << "seconds          " << seconds << "\n";
-  }
+  report_edited_mesh(
+      args, mesh, after, seconds, [&](nlohmann::json& j) { put_denoise(j, stats); },
+      [&](std::ostream& out) {
+        out << std::setprecision(4) << "noise            " << stats.noise_mm
+            << " (measured on the vertices unless given), normals' scatter " << stats.noise_deg
+            << " deg, range " << stats.feature_deg << " deg\n"
+            << "moved            " << stats.moved << " vertices, " << stats.mean_move
+            << " on average, " << stats.max_move << " at most (" << stats.clamped
+            << " cut to the largest move)\n"
+            << "left             " << stats.refused
+            << " vertices where they were (a move would fold or cross)\n";
+      });
   return kExitOk;
 }
 
@@ -103,11 +85,8 @@ void add_denoise_command(CLI::App& app, Runner& run) {
   auto args = std::make_shared<DenoiseArgs>();
   CLI::App* cmd = app.add_subcommand(
       "denoise", "Remove a scan's noise from a mesh, keeping its sharp edges (only vertices move)");
-  cmd->add_option("MESH", args->mesh, "mesh file: .ply .stl .obj")->required();
-  cmd->add_option("-o,--output", args->output, "output mesh: .stl .ply .obj")->required();
+  add_mesh_edit_args(*cmd, *args);
   add_denoise_options(*cmd, args->options, "");
-  cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
-  cmd->add_flag("--json", args->json, "print one JSON object with the figures");
   cmd->callback([args, &run] { run = [args] { return run_denoise(*args); }; });
 }
 

@@ -19,16 +19,12 @@
 namespace scanmesh::cli {
 namespace {
 
-struct FillArgs {
-  std::string mesh;
-  std::string output;
+struct FillArgs : MeshEditArgs {
   // Holes, not borders: a single range scan's border runs to hundreds of edges (the bunny's
   // bun000: 781), its holes to tens (the bunny's base: 13-74). --max-width limits by size.
   std::size_t max_edges = 100;
   double max_width = 0;
   bool flat = false;
-  bool ascii = false;
-  bool json = false;
   std::string preview;
   std::string up = "z";
 };
@@ -95,8 +91,7 @@ void add_fill_command(CLI::App& app, Runner& run) {
   auto args = std::make_shared<FillArgs>();
   CLI::App* cmd = app.add_subcommand(
       "fill", "Close a mesh's holes up to a size (refined, faired patches) for a closed mesh");
-  cmd->add_option("MESH", args->mesh, "mesh file: .ply .stl .obj")->required();
-  cmd->add_option("-o,--output", args->output, "output mesh: .stl .ply .obj")->required();
+  add_mesh_edit_args(*cmd, *args);
   cmd->add_option("--max-edges", args->max_edges,
                   "close the boundary loops of at most N edges; longer ones (a scan's border) "
                   "are kept")
@@ -110,8 +105,6 @@ void add_fill_command(CLI::App& app, Runner& run) {
   cmd->add_flag("--flat", args->flat,
                 "patch each hole with triangles of its rim's vertices only (no new vertex, no "
                 "fairing)");
-  cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
-  cmd->add_flag("--json", args->json, "print one JSON object with the figures");
   cmd->add_option("--preview", args->preview,
                   "also write a shaded picture of the result (.png; the patches amber)");
   cmd->add_option("--up", args->up, "world axis shown upwards in the preview (x, y or z)")

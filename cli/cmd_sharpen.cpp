@@ -18,12 +18,8 @@
 namespace scanmesh::cli {
 namespace {
 
-struct SharpenArgs {
-  std::string mesh;
-  std::string output;
+struct SharpenArgs : MeshEditArgs {
   recon::SharpenOptions options;
-  bool ascii = false;
-  bool json = false;
 };
 
 int run_sharpen(const SharpenArgs& args) {
@@ -37,33 +33,17 @@ int run_sharpen(const SharpenArgs& args) {
   write_mesh_file(mesh, args.output, args.ascii);
   const recon::MeshReport after = recon::analyze(mesh);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-  if (args.json) {
-    nlohmann::json j;
-    j["input"] = args.mesh;
-    j["output"] = args.output;
-    put_sharpen(j, stats);
-    j["vertices"] = mesh.vertices.size();
-    j["triangles"] = mesh.triangles.size();
-    put_topology(j, after);
-    j["seconds_total"] = seconds;
-    std::cout << j.dump() << "\n";
-  } else {
-    std::cout << std::fixed << std::setprecision(3) << "bevel triangles  "
-              << stats.bevel_triangles << "\n"
-              << "new vertices     " << stats.edge_vertices << " on edges, "
-              << stats.corner_vertices << " at corners (" << stats.flipped
-              << " edges flipped along them, " << stats.tidied
-              << " slivers beside the faces flipped away; " << stats.refused
-              << " refused: they would cross or fold)\n"
-              << "left round       " << stats.rounded
-              << " bevel triangles on fillets (a corner on neither face, off both planes)\n"
-              << "vertices         " << mesh.vertices.size() << "\n"
-              << "triangles        " << mesh.triangles.size() << "\n"
-              << "boundary loops   " << after.boundary_loops << "\n"
-              << "genus            " << after.genus << "\n"
-              << "written          " << args.output << "\n"
-              << "seconds          " << seconds << "\n";
-  }
+  report_edited_mesh(
+      args, mesh, after, seconds, [&](nlohmann::json& j) { put_sharpen(j, stats); },
+      [&](std::ostream& out) {
+        out << "bevel triangles  " << stats.bevel_triangles << "\n"
+            << "new vertices     " << stats.edge_vertices << " on edges, " << stats.corner_vertices
+            << " at corners (" << stats.flipped << " edges flipped along them, " << stats.tidied
+            << " slivers beside the faces flipped away; " << stats.refused
+            << " refused: they would cross or fold)\n"
+            << "left round       " << stats.rounded
+            << " bevel triangles on fillets (a corner on neither face, off both planes)\n";
+      });
   return kExitOk;
 }
 
@@ -92,11 +72,8 @@ void add_sharpen_command(CLI::App& app, Runner& run) {
   CLI::App* cmd = app.add_subcommand(
       "sharpen", "Recover the sharp edges and corners a scan bevelled (new vertices where the "
                  "faces meet)");
-  cmd->add_option("MESH", args->mesh, "mesh file: .ply .stl .obj")->required();
-  cmd->add_option("-o,--output", args->output, "output mesh: .stl .ply .obj")->required();
+  add_mesh_edit_args(*cmd, *args);
   add_sharpen_options(*cmd, args->options, "");
-  cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
-  cmd->add_flag("--json", args->json, "print one JSON object with the figures");
   cmd->callback([args, &run] { run = [args] { return run_sharpen(*args); }; });
 }
 

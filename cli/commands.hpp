@@ -7,16 +7,18 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <iomanip>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "scanmesh/common/error.hpp"
+#include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/denoise.hpp"
 #include "scanmesh/recon/fill.hpp"
-#include "scanmesh/recon/sharpen.hpp"
-#include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/mesh.hpp"
+#include "scanmesh/recon/sharpen.hpp"
 
 namespace scanmesh::cli {
 
@@ -139,6 +141,49 @@ inline void write_mesh_file(const recon::Mesh& mesh, const std::string& file, bo
                  "mesh (far from the origin) by more than 1e-4 of its mean edge; write .ply, .obj "
                  "or --ascii STL to keep double precision\n",
                  file.c_str());
+}
+
+/// The file arguments every command that changes a mesh takes (fill, sharpen, denoise).
+struct MeshEditArgs {
+  std::string mesh;
+  std::string output;
+  bool ascii = false;
+  bool json = false;
+};
+
+/// MESH, -o/--output, --ascii and --json on `cmd`.
+inline void add_mesh_edit_args(CLI::App& cmd, MeshEditArgs& args) {
+  cmd.add_option("MESH", args.mesh, "mesh file: .ply .stl .obj")->required();
+  cmd.add_option("-o,--output", args.output, "output mesh: .stl .ply .obj")->required();
+  cmd.add_flag("--ascii", args.ascii, "write ASCII STL instead of binary");
+  cmd.add_flag("--json", args.json, "print one JSON object with the figures");
+}
+
+/// What `sharpen` and `denoise` say after writing the mesh they changed: one JSON object (the
+/// files, the command's own fields from `put`, the mesh's size and topology, the time), or the
+/// command's own summary lines from `print` followed by the mesh's.
+template <class Put, class Print>
+void report_edited_mesh(const MeshEditArgs& args, const recon::Mesh& mesh,
+                        const recon::MeshReport& after, double seconds, Put&& put, Print&& print) {
+  if (args.json) {
+    nlohmann::json j;
+    j["input"] = args.mesh;
+    j["output"] = args.output;
+    put(j);
+    j["vertices"] = mesh.vertices.size();
+    j["triangles"] = mesh.triangles.size();
+    put_topology(j, after);
+    j["seconds_total"] = seconds;
+    std::cout << j.dump() << "\n";
+    return;
+  }
+  print(std::cout);
+  std::cout << "vertices         " << mesh.vertices.size() << "\n"
+            << "triangles        " << mesh.triangles.size() << "\n"
+            << "boundary loops   " << after.boundary_loops << "\n"
+            << "genus            " << after.genus << "\n"
+            << "written          " << args.output << "\n"
+            << std::fixed << std::setprecision(3) << "seconds          " << seconds << "\n";
 }
 
 void add_reconstruct_command(CLI::App& app, Runner& run);
