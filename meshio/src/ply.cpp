@@ -8,6 +8,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "detail.hpp"
@@ -268,8 +269,11 @@ class BinaryReader {
   }
   void skip(std::size_t n) { pos_ += n; }
 
-  /// Reads one scalar as double (bounds already checked with need()).
-  double read_double(Scalar t) {
+  /// Reads one scalar of type t as R (bounds already checked with need()). As an integer R,
+  /// t must be an integer type (the header check makes list counts and face indices so): a
+  /// float type reads nothing and gives 0.
+  template <class R>
+  R read_scalar(Scalar t) {
     switch (t) {
       case Scalar::kInt8:
         return static_cast<std::int8_t>(read_raw<std::uint8_t>());
@@ -284,34 +288,18 @@ class BinaryReader {
       case Scalar::kUint32:
         return read_raw<std::uint32_t>();
       case Scalar::kFloat32:
-        return std::bit_cast<float>(read_raw<std::uint32_t>());
+        if constexpr (std::is_floating_point_v<R>)
+          return std::bit_cast<float>(read_raw<std::uint32_t>());
+        break;
       case Scalar::kFloat64:
-        return std::bit_cast<double>(read_raw<std::uint64_t>());
-    }
-    return 0;
-  }
-
-  /// Reads one integer scalar (bounds already checked; t is an integer type).
-  std::int64_t read_int(Scalar t) {
-    switch (t) {
-      case Scalar::kInt8:
-        return static_cast<std::int8_t>(read_raw<std::uint8_t>());
-      case Scalar::kUint8:
-        return read_raw<std::uint8_t>();
-      case Scalar::kInt16:
-        return static_cast<std::int16_t>(read_raw<std::uint16_t>());
-      case Scalar::kUint16:
-        return read_raw<std::uint16_t>();
-      case Scalar::kInt32:
-        return static_cast<std::int32_t>(read_raw<std::uint32_t>());
-      case Scalar::kUint32:
-        return read_raw<std::uint32_t>();
-      case Scalar::kFloat32:
-      case Scalar::kFloat64:
+        if constexpr (std::is_floating_point_v<R>)
+          return std::bit_cast<double>(read_raw<std::uint64_t>());
         break;
     }
     return 0;
   }
+  double read_double(Scalar t) { return read_scalar<double>(t); }
+  std::int64_t read_int(Scalar t) { return read_scalar<std::int64_t>(t); }
 
   /// Reads a list length and checks that its items fit in the rest of the data.
   std::size_t read_list_count(const Property& p, std::string_view what) {
