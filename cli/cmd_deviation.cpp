@@ -99,7 +99,9 @@ void add_deviation_command(CLI::App& app, Runner& run) {
   cmd->add_option("--ref", args->ref, "reference surface: .ply .stl .obj (must have triangles)")
       ->required();
   cmd->add_option("--png", args->png,
-                  "write a picture of MESH coloured by its signed deviation from the reference");
+                  "write a picture of MESH coloured by its signed deviation from the reference "
+                  "(.png)")
+      ->check(png_output());
   cmd->add_option("--up", args->up, "world axis shown upwards in the picture (x, y or z)")
       ->capture_default_str()
       ->check(CLI::IsMember({"x", "y", "z"}));

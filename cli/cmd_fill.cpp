@@ -106,7 +106,8 @@ void add_fill_command(CLI::App& app, Runner& run) {
                 "patch each hole with triangles of its rim's vertices only (no new vertex, no "
                 "fairing)");
   cmd->add_option("--preview", args->preview,
-                  "also write a shaded picture of the result (.png; the patches amber)");
+                  "also write a shaded picture of the result (.png; the patches amber)")
+      ->check(png_output());
   cmd->add_option("--up", args->up, "world axis shown upwards in the preview (x, y or z)")
       ->capture_default_str()
       ->check(CLI::IsMember({"x", "y", "z"}));

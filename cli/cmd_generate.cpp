@@ -109,8 +109,11 @@ void add_generate_command(CLI::App& app, Runner& run) {
       ->check(kNonNegative);
   cmd->add_option("--seed", args->seed, "random seed (same seed, same points)")
       ->capture_default_str();
-  cmd->add_option("-o,--output", args->output, "point file to write (.xyz)")->required();
-  cmd->add_option("--mesh", args->mesh_out, "also write the exact reference mesh: .stl .ply .obj");
+  cmd->add_option("-o,--output", args->output, "point file to write (.xyz)")
+      ->required()
+      ->check(points_output());
+  cmd->add_option("--mesh", args->mesh_out, "also write the exact reference mesh: .stl .ply .obj")
+      ->check(mesh_output());
   cmd->add_flag("--json", args->json, "print one JSON object instead of the summary line");
   cmd->callback([args, &run] { run = [args] { return run_generate(*args); }; });
 }

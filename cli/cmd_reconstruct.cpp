@@ -374,7 +374,7 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   CLI::App* cmd = app.add_subcommand("reconstruct", "Reconstruct a triangle mesh from points");
   cmd->add_option("INPUT", args->inputs,
                   "point files: .xyz .txt .csv .asc .ply .stl .obj (merged)");
-  cmd->add_option("-o,--output", args->output, "output mesh: .stl .ply .obj")->required();
+  add_mesh_output_option(*cmd, args->output);
   cmd->add_option("--cube", args->cube,
                   "cube reduction edge in input units, 'auto' (from the measured spacing) or "
                   "'none'")
@@ -392,7 +392,8 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
       ->expected(3);
   cmd->add_flag("--json", args->json, "print one JSON object with the figures");
   cmd->add_flag("--ascii", args->ascii, "write ASCII STL instead of binary");
-  cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)");
+  cmd->add_option("--outliers", args->outliers_file, "write the unreached points here (.xyz)")
+      ->check(points_output());
   cmd->add_flag("--no-insert", args->no_insert,
                 "leave the points the front did not reach out (no insertion afterwards)");
   cmd->add_flag("--zip-holes", args->zip_holes,
@@ -425,7 +426,8 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
   add_sharpen_options(*cmd, args->sharpen_options, "with --sharpen: ");
   cmd->add_option("--preview", args->preview,
                   "also write a shaded picture of the mesh (.png; back faces tinted, so holes "
-                  "and flipped triangles show; filled holes amber)");
+                  "and flipped triangles show; filled holes amber)")
+      ->check(png_output());
   cmd->add_option("--up", args->up, "world axis shown upwards in the preview (x, y or z)")
       ->capture_default_str()
       ->check(CLI::IsMember({"x", "y", "z"}));

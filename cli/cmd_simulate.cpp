@@ -345,9 +345,12 @@ void add_simulate_command(CLI::App& app, Runner& run) {
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "random seed (same seed, same bytes)")
       ->capture_default_str();
-  cmd->add_option("-o,--output", args->output, "measured points to write (.xyz)")->required();
+  cmd->add_option("-o,--output", args->output, "measured points to write (.xyz)")
+      ->required()
+      ->check(points_output());
   cmd->add_option("--truth", args->truth,
-                  "also write the true surface point of each measured point (.xyz)");
+                  "also write the true surface point of each measured point (.xyz)")
+      ->check(points_output());
   cmd->add_option("--stream", args->stream,
                   "also write the raw timestamped sample stream (scanmesh-stream v1)");
   cmd->add_flag("--realtime", args->realtime,

@@ -3,9 +3,11 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <functional>
 #include <iomanip>
 #include <iostream>
@@ -143,6 +145,41 @@ inline void write_mesh_file(const recon::Mesh& mesh, const std::string& file, bo
                  file.c_str());
 }
 
+/// A check of a file the command will write: its extension (any case) must be one its writer
+/// knows, or the arguments are a usage error (exit 2) before any input is read. `use` lists
+/// them for the message ("use .stl, .ply or .obj").
+inline CLI::Validator output_extension(bool (*known)(const std::filesystem::path&),
+                                       std::string use) {
+  return CLI::Validator(
+      [known, use](std::string& file) -> std::string {
+        if (known(file)) return {};
+        const std::string ext = std::filesystem::path(file).extension().string();
+        return (ext.empty() ? std::string("no extension") : "unknown extension '" + ext + "'") +
+               " (use " + use + ")";
+      },
+      "", "output extension");
+}
+inline bool is_png_file(const std::filesystem::path& file) {
+  std::string ext = file.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".png";
+}
+/// Mesh files (meshio::write_mesh), point files (meshio::write_points_xyz), PNG pictures.
+inline CLI::Validator mesh_output() {
+  return output_extension(meshio::writes_mesh_extension, ".stl, .ply or .obj");
+}
+inline CLI::Validator points_output() {
+  return output_extension(meshio::writes_points_extension, ".xyz, .txt or .asc");
+}
+inline CLI::Validator png_output() { return output_extension(is_png_file, ".png"); }
+
+/// -o/--output naming a mesh to write.
+inline CLI::Option* add_mesh_output_option(CLI::App& cmd, std::string& output) {
+  return cmd.add_option("-o,--output", output, "output mesh: .stl .ply .obj")
+      ->required()
+      ->check(mesh_output());
+}
+
 /// The file arguments every command that changes a mesh takes (fill, sharpen, denoise).
 struct MeshEditArgs {
   std::string mesh;
@@ -154,7 +191,7 @@ struct MeshEditArgs {
 /// MESH, -o/--output, --ascii and --json on `cmd`.
 inline void add_mesh_edit_args(CLI::App& cmd, MeshEditArgs& args) {
   cmd.add_option("MESH", args.mesh, "mesh file: .ply .stl .obj")->required();
-  cmd.add_option("-o,--output", args.output, "output mesh: .stl .ply .obj")->required();
+  add_mesh_output_option(cmd, args.output);
   cmd.add_flag("--ascii", args.ascii, "write ASCII STL instead of binary");
   cmd.add_flag("--json", args.json, "print one JSON object with the figures");
 }

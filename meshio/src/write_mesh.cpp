@@ -275,10 +275,15 @@ bool float_holds(const recon::Mesh& mesh) {
   return 0x1.0p-24 * extent <= 1e-4 * edges / static_cast<double>(counted);
 }
 
+bool writes_mesh_extension(const std::filesystem::path& file) {
+  const std::string ext = detail::lower_extension(file);
+  return ext == ".stl" || ext == ".ply" || ext == ".obj";
+}
+
 WriteReport write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
                        const WriteOptions& options) {
   const std::string ext = detail::lower_extension(file);
-  if (ext != ".stl" && ext != ".ply" && ext != ".obj") {
+  if (!writes_mesh_extension(file)) {
     fail_write(file, "unknown mesh extension '" + ext + "' (use .stl, .ply or .obj)");
   }
   check_mesh(mesh, file);
@@ -301,7 +306,16 @@ WriteReport write_mesh(const recon::Mesh& mesh, const std::filesystem::path& fil
   return report;
 }
 
+bool writes_points_extension(const std::filesystem::path& file) {
+  const std::string ext = detail::lower_extension(file);
+  return ext == ".xyz" || ext == ".txt" || ext == ".asc";
+}
+
 void write_points_xyz(const std::vector<recon::Vec3>& points, const std::filesystem::path& file) {
+  if (!writes_points_extension(file)) {
+    fail_write(file, "unknown point file extension '" + detail::lower_extension(file) +
+                         "' (use .xyz, .txt or .asc)");
+  }
   AtomicFile out(file);
   std::string chunk;
   for (const recon::Vec3& p : points) {

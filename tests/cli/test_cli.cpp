@@ -284,8 +284,10 @@ TEST_CASE("usage errors exit 2", "[cli]") {
       {"generate unknown part", {"generate", "--part", "banana", "-o", dir / "g.xyz"}},
       {"generate --part and --mesh-in",
        {"generate", "--part", "sphere", "--mesh-in", out, "-o", dir / "g.xyz"}},
-      {"generate --spacing 0", {"generate", "--part", "sphere", "--spacing", "0", "-o", out}},
-      {"generate --noise -1", {"generate", "--part", "sphere", "--noise", "-1", "-o", out}},
+      {"generate --spacing 0",
+       {"generate", "--part", "sphere", "--spacing", "0", "-o", dir / "g.xyz"}},
+      {"generate --noise -1",
+       {"generate", "--part", "sphere", "--noise", "-1", "-o", dir / "g.xyz"}},
       {"generate without -o", {"generate", "--part", "sphere"}},
   };
   for (const auto& [name, args] : cases) {
@@ -348,6 +350,56 @@ TEST_CASE("bad input exits 3 with a message naming the file", "[cli]") {
       CHECK(r.status == 3);
     }
   }
+}
+
+TEST_CASE("a file to write whose extension its format lacks is a usage error before any work",
+          "[cli]") {
+  TempDir dir;
+  // The input does not exist: a status of 2, not 3, shows the output was checked first.
+  const std::string missing = dir / "missing.xyz";
+  const std::string mesh = dir / "m.stl";
+  spit(mesh, "solid m\nendsolid m\n");
+  struct Case {
+    std::vector<std::string> args;
+    std::string file, extension, use;
+  };
+  const std::vector<Case> cases{
+      {{"reconstruct", missing, "-o", dir / "out.xyzw"}, "out.xyzw", "'.xyzw'", ".stl, .ply or .obj"},
+      {{"reconstruct", missing, "-o", dir / "out"}, "out", "no extension", ".stl, .ply or .obj"},
+      {{"reconstruct", missing, "-o", dir / "o.stl", "--outliers", dir / "far.csv"}, "far.csv",
+       "'.csv'", ".xyz, .txt or .asc"},
+      {{"reconstruct", missing, "-o", dir / "o.stl", "--preview", dir / "p.jpg"}, "p.jpg",
+       "'.jpg'", ".png"},
+      {{"fill", missing, "-o", dir / "f.off"}, "f.off", "'.off'", ".stl, .ply or .obj"},
+      {{"sharpen", missing, "-o", dir / "s.xyz"}, "s.xyz", "'.xyz'", ".stl, .ply or .obj"},
+      {{"denoise", missing, "-o", dir / "d.vtk"}, "d.vtk", "'.vtk'", ".stl, .ply or .obj"},
+      {{"deviation", missing, "--ref", missing, "--png", dir / "d.bmp"}, "d.bmp", "'.bmp'",
+       ".png"},
+      {{"generate", "--mesh-in", missing, "-o", dir / "g.stl"}, "g.stl", "'.stl'",
+       ".xyz, .txt or .asc"},
+      {{"generate", "--mesh-in", missing, "-o", dir / "g.xyz", "--mesh", dir / "r.xyz"}, "r.xyz",
+       "'.xyz'", ".stl, .ply or .obj"},
+      {{"simulate", "--mesh", missing, "-o", dir / "s.ply"}, "s.ply", "'.ply'",
+       ".xyz, .txt or .asc"},
+      {{"simulate", "--mesh", missing, "-o", dir / "s.xyz", "--truth", dir / "t.obj"}, "t.obj",
+       "'.obj'", ".xyz, .txt or .asc"},
+  };
+  for (const Case& c : cases) {
+    const RunResult r = run(dir, c.args);
+    INFO(describe(r));
+    CHECK(r.status == 2);
+    CHECK_THAT(r.err, Catch::Contains(c.extension) && Catch::Contains("(use " + c.use + ")"));
+    CHECK(!fs::exists(dir / c.file));
+  }
+  // Only m.stl, written above: no output of any of them.
+  CHECK(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator{}) == 1);
+
+  // Any case of a known extension is taken.
+  const fs::path xyz = generate_sphere(dir);
+  const RunResult r = run(dir, {"reconstruct", xyz, "-o", dir / "UPPER.PLY"});
+  INFO(describe(r));
+  CHECK(r.status == 0);
+  CHECK(scanmesh::meshio::read_mesh(dir / "UPPER.PLY").triangles.size() > 100);
 }
 
 TEST_CASE("unwritable output exits 4 and leaves no file behind", "[cli]") {

@@ -228,6 +228,13 @@ TEST_CASE("write_mesh: failures leave nothing behind", "[meshio]") {
     const fs::path p = dir.path() / "m.off";
     CHECK_THAT(output_error([&] { meshio::write_mesh(mesh, p); }),
                Catch::StartsWith("cannot write " + p.string() + ": unknown mesh extension '.off'"));
+    const fs::path q = dir.path() / "p.CSV";
+    CHECK(output_error([&] { meshio::write_points_xyz(mesh.vertices, q); }) ==
+          "cannot write " + q.string() + ": unknown point file extension '.csv' (use .xyz, .txt or .asc)");
+    CHECK(meshio::writes_mesh_extension("a/b.ObJ"));
+    CHECK(!meshio::writes_mesh_extension("a/b.xyz"));
+    CHECK(meshio::writes_points_extension("a/b.TXT"));
+    CHECK(!meshio::writes_points_extension("a/b"));
     CHECK(dir.entries().empty());
   }
   SECTION("triangle with a bad index") {

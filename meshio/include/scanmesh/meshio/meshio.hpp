@@ -62,6 +62,9 @@ struct WriteReport {
   bool float_rounds_mesh = false;
 };
 
+/// The mesh formats write_mesh writes, by extension in any case: .stl, .ply, .obj.
+bool writes_mesh_extension(const std::filesystem::path& file);
+
 /// Writes by extension: .stl (binary unless ascii_stl), .ply (binary little endian), .obj.
 /// Coordinates are float (PLY `float`, 9 significant digits in text) when float_holds(mesh),
 /// otherwise double (PLY `double`, 17 digits in text); binary STL is float by its format, and
@@ -71,7 +74,12 @@ struct WriteReport {
 WriteReport write_mesh(const recon::Mesh& mesh, const std::filesystem::path& file,
                        const WriteOptions& options = {});
 
-/// Writes points as "x y z\n" text (%.9g), atomically like write_mesh.
+/// The point files write_points_xyz writes, by extension in any case: .xyz, .txt, .asc (the
+/// whitespace-separated text read_points reads).
+bool writes_points_extension(const std::filesystem::path& file);
+
+/// Writes points as "x y z\n" text (%.9g), atomically like write_mesh. Throws OutputError for
+/// an extension writes_points_extension does not take.
 void write_points_xyz(const std::vector<recon::Vec3>& points, const std::filesystem::path& file);
 
 }  // namespace scanmesh::meshio
