@@ -38,13 +38,32 @@ class FdGuard {
 
 }  // namespace
 
-std::string load_file(const std::filesystem::path& file) {
+namespace {
+
+/// Opens `file` for reading and fills `st`; throws "cannot read FILE: ..." when it cannot be
+/// opened or is a directory.
+int open_readable(const std::filesystem::path& file, struct stat& st) {
   const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) fail_read(file, errno);
-  FdGuard guard(fd);
+  if (::fstat(fd, &st) != 0 || S_ISDIR(st.st_mode)) {
+    const int err = S_ISDIR(st.st_mode) ? EISDIR : errno;
+    ::close(fd);
+    fail_read(file, err);
+  }
+  return fd;
+}
+
+}  // namespace
+
+void require_readable(const std::filesystem::path& file) {
   struct stat st {};
-  if (::fstat(fd, &st) != 0) fail_read(file, errno);
-  if (S_ISDIR(st.st_mode)) fail_read(file, EISDIR);
+  ::close(open_readable(file, st));
+}
+
+std::string load_file(const std::filesystem::path& file) {
+  struct stat st {};
+  const int fd = open_readable(file, st);
+  FdGuard guard(fd);
 
   std::string data;
   // Regular files are read in one go into a buffer of their size; anything else (pipes, /proc)

@@ -16,6 +16,11 @@ namespace scanmesh::meshio::detail {
 /// The whole file in memory (one read, no per-line I/O). Throws InputError "cannot read FILE: ...".
 std::string load_file(const std::filesystem::path& file);
 
+/// Throws the InputError load_file would when `file` cannot be opened or is a directory: the
+/// readers check it before naming an unknown extension, so a missing file or a folder is
+/// reported as such.
+void require_readable(const std::filesystem::path& file);
+
 /// The extension in lower case with its dot (".ply"), or "" when there is none.
 std::string lower_extension(const std::filesystem::path& file);
 

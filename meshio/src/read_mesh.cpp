@@ -15,6 +15,7 @@ recon::Mesh read_mesh(const std::filesystem::path& file) {
   if (ext == ".ply") return parse_ply(detail::load_file(file), name);
   if (ext == ".stl") return parse_stl(detail::load_file(file), name);
   if (ext == ".obj") return parse_obj(detail::load_file(file), name);
+  detail::require_readable(file);
   throw InputError(name + ": unknown mesh file extension '" + ext +
                    "' (expected .ply, .stl or .obj)");
 }

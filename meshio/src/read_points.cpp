@@ -78,6 +78,7 @@ recon::PointCloud read_points(const std::filesystem::path& file) {
   } else if (ext == ".obj") {
     cloud.points = detail::parse_obj(detail::load_file(file), name, true).vertices;
   } else {
+    detail::require_readable(file);
     throw InputError(name + ": unknown point file extension '" + ext +
                      "' (expected .xyz, .txt, .csv, .asc, .ply, .stl or .obj)");
   }

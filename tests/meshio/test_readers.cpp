@@ -188,6 +188,18 @@ TEST_CASE("read_points: dispatch by extension and file errors", "[meshio]") {
              Catch::Contains("unknown point file extension '.pts'"));
   CHECK_THAT(input_error([&] { meshio::read_mesh(dir.file("b.xyz", "1 2 3\n")); }),
              Catch::Contains("unknown mesh file extension '.xyz'"));
+  // A folder or a missing file is named as such, whatever its extension says.
+  const std::string folder = (dir.path() / "scans").string();
+  std::filesystem::create_directory(folder);
+  CHECK(input_error([&] { meshio::read_points(folder); }) ==
+        "cannot read " + folder + ": Is a directory");
+  CHECK(input_error([&] { meshio::read_mesh(folder); }) ==
+        "cannot read " + folder + ": Is a directory");
+  const std::string typo = (dir.path() / "scan.pst").string();
+  CHECK(input_error([&] { meshio::read_points(typo); }) ==
+        "cannot read " + typo + ": No such file or directory");
+  CHECK(input_error([&] { meshio::read_mesh(typo); }) ==
+        "cannot read " + typo + ": No such file or directory");
   const std::string bad = dir.file("bad.xyz", "1 2 3\n1 2\n").string();
   CHECK(input_error([&] { meshio::read_points(bad); }) ==
         bad + ":2: expected 3 numbers (x y z), found 2");
