@@ -123,7 +123,14 @@ std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
       }
     }
     for (const auto& [path, entry] : jobs) {
-      const recon::PointCloud c = meshio::read_points(path);
+      recon::PointCloud c;
+      try {
+        c = meshio::read_points(path);
+      } catch (const InputError& e) {
+        if (!args.inputs.empty()) throw;
+        // The path came from the registration file, resolved against its folder: say so.
+        throw InputError(std::string(e.what()) + " (a scan listed in " + args.conf + ")");
+      }
       const recon::Vec3 sensor =
           entry->to_world(recon::Vec3::UnitZ()) - entry->to_world(recon::Vec3::Zero());
       for (const auto& p : c.points) {

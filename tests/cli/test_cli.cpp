@@ -1251,6 +1251,16 @@ TEST_CASE("reconstruct --conf / --sensor: an open scan faces the sensor that too
                 "--sensor", "0,0"});
   CHECK(r.status == 2);
   CHECK_FALSE(fs::exists(dir / "x.ply"));
+  // A scan the registration file lists but its folder lacks: the message names both.
+  spit(dir / "two.conf", "bmesh bowl.xyz 0 0 0 0 0 0 1\nbmesh gone.xyz 0 0 0 0 0 0 1\n");
+  r = run(dir, {"reconstruct", "--conf", (dir / "two.conf").string(), "-o",
+                (dir / "x.ply").string()});
+  INFO(describe(r));
+  CHECK(r.status == 3);
+  CHECK_THAT(r.err, Catch::Contains("cannot read " + (dir / "gone.xyz").string() +
+                                    ": No such file or directory (a scan listed in " +
+                                    (dir / "two.conf").string() + ")"));
+  CHECK_FALSE(fs::exists(dir / "x.ply"));
 }
 
 TEST_CASE("reconstruct --preview writes a shaded picture of the mesh", "[cli]") {
