@@ -38,32 +38,19 @@ class FdGuard {
 
 }  // namespace
 
-namespace {
-
-/// Opens `file` for reading and fills `st`; throws "cannot read FILE: ..." when it cannot be
-/// opened or is a directory.
-int open_readable(const std::filesystem::path& file, struct stat& st) {
-  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) fail_read(file, errno);
-  if (::fstat(fd, &st) != 0 || S_ISDIR(st.st_mode)) {
-    const int err = S_ISDIR(st.st_mode) ? EISDIR : errno;
-    ::close(fd);
-    fail_read(file, err);
-  }
-  return fd;
-}
-
-}  // namespace
-
 void require_readable(const std::filesystem::path& file) {
   struct stat st {};
-  ::close(open_readable(file, st));
+  if (::stat(file.c_str(), &st) != 0) fail_read(file, errno);  // no open: a FIFO would block
+  if (S_ISDIR(st.st_mode)) fail_read(file, EISDIR);
 }
 
 std::string load_file(const std::filesystem::path& file) {
-  struct stat st {};
-  const int fd = open_readable(file, st);
+  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) fail_read(file, errno);
   FdGuard guard(fd);
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) fail_read(file, errno);
+  if (S_ISDIR(st.st_mode)) fail_read(file, EISDIR);
 
   std::string data;
   // Regular files are read in one go into a buffer of their size; anything else (pipes, /proc)

@@ -16,7 +16,7 @@ namespace scanmesh::meshio::detail {
 /// The whole file in memory (one read, no per-line I/O). Throws InputError "cannot read FILE: ...".
 std::string load_file(const std::filesystem::path& file);
 
-/// Throws the InputError load_file would when `file` cannot be opened or is a directory: the
+/// Throws the InputError load_file would when `file` does not exist or is a directory: the
 /// readers check it before naming an unknown extension, so a missing file or a folder is
 /// reported as such.
 void require_readable(const std::filesystem::path& file);
