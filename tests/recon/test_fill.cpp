@@ -595,6 +595,12 @@ FillOptions gap_options() {
   return opt;
 }
 
+/// untangle_gaps with the gap closing's options over the unit spacing of the flat grids.
+scanmesh::recon::UntangleStats untangle_unit(Mesh& m, const FillStats& first) {
+  const std::vector<float> spacing(m.vertices.size(), 1.0f);
+  return scanmesh::recon::untangle_gaps(m, gap_options(), spacing, first);
+}
+
 }  // namespace
 
 TEST_CASE("untangle_gaps widens a removal that would split a vertex's fan, and refuses what "
@@ -617,10 +623,8 @@ TEST_CASE("untangle_gaps widens a removal that would split a vertex's fan, and r
           {{Triangle{1, 2, 7}, Triangle{1, 7, 6}}, 0, 0},  // neighbours at the border: a notch
       }));
   const FillStats first = crossing_gap(m, removed);
-  const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
-  const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, first);
+  const scanmesh::recon::UntangleStats u = untangle_unit(m, first);
   INFO("removed " << removed.size() << " triangles, the first " << removed[0][0] << "-"
                   << removed[0][1] << "-" << removed[0][2]);
   CHECK(u.widened == widened);
@@ -647,10 +651,8 @@ TEST_CASE("untangle_gaps refuses, without a trial, a removal that splits a fan i
   }
   for (std::uint32_t k = 0; k < kN; ++k) m.triangles.push_back({0, 1 + k, 1 + (k + 1) % kN});
   const FillStats first = crossing_gap(m, {m.triangles[0], m.triangles[kN / 2]});
-  const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
-  const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, first);
+  const scanmesh::recon::UntangleStats u = untangle_unit(m, first);
   CHECK(u.split_fans == 1);
   CHECK(u.widened == 0);
   CHECK(u.removed == 0);
@@ -707,10 +709,8 @@ TEST_CASE("untangle_gaps takes out a flap whose removal the gap needs, its verti
   REQUIRE(analyze(m).boundary_loops == 2);
   REQUIRE(analyze(m).non_manifold_vertices == 0);
   REQUIRE(find_self_intersections(m).pairs == 0);
-  const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
-  const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_gap(m, {{17, 25, 24}}));
+  const scanmesh::recon::UntangleStats u = untangle_unit(m, crossing_gap(m, {{17, 25, 24}}));
   CHECK(u.widened == 1);
   CHECK(u.unfillable == 0);
   CHECK(u.split_fans == 0);
@@ -747,10 +747,8 @@ TEST_CASE("untangle_gaps leaves a flap that a removal would cut a piece off", "[
   (void)flapped_grid(m, 5);
   REQUIRE(analyze(m).orientation_consistent);
   REQUIRE(analyze(m).boundary_loops == 2);
-  const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
-  const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_gap(m, {{17, 25, 24}}));
+  const scanmesh::recon::UntangleStats u = untangle_unit(m, crossing_gap(m, {{17, 25, 24}}));
   CHECK(u.widened == 1);
   CHECK(u.removed == 0);
   CHECK(u.closed == 0);
@@ -766,10 +764,8 @@ TEST_CASE("untangle_gaps does not try a widened removal whose loop no fill close
   Mesh m = flat_grid(6);
   m.vertices.emplace_back(3.5, -0.8, 0.6);
   m.triangles.push_back({4, 3, 49});
-  const std::vector<float> spacing(m.vertices.size(), 1.0f);
   const Mesh before = m;
-  const scanmesh::recon::UntangleStats u =
-      scanmesh::recon::untangle_gaps(m, gap_options(), spacing, crossing_gap(m, {{3, 4, 11}}));
+  const scanmesh::recon::UntangleStats u = untangle_unit(m, crossing_gap(m, {{3, 4, 11}}));
   CHECK(u.unfillable == 1);
   CHECK(u.widened == 0);
   CHECK(u.removed == 0);
