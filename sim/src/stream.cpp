@@ -192,7 +192,7 @@ void put_pose_record(std::string& line, char tag, const T& s) {
   put_int(line, s.seq);
   line += ' ';
   put_int(line, s.t.ns);
-  for (const double v : {s.x_mm, s.y_mm, s.z_mm, s.a_rad}) {
+  for (const double v : {s.pose.x_mm, s.pose.y_mm, s.pose.z_mm, s.pose.a_rad}) {
     line += ' ';
     put_double(line, v);
   }
@@ -485,9 +485,9 @@ RecordedStream parse_stream(std::string_view text, std::string_view name,
       const double x = p.finite(tok[3], "x"), y = p.finite(tok[4], "y"), z = p.finite(tok[5], "z"),
                    a = p.finite(tok[6], "a");
       if (tag == "P") {
-        out.stage.push_back(StageSample{seq, t, x, y, z, a});
+        out.stage.push_back(StageSample{seq, t, {x, y, z, a}});
       } else {
-        out.probe.push_back(ProbeTrigger{seq, t, x, y, z, a});
+        out.probe.push_back(ProbeTrigger{seq, t, {x, y, z, a}});
       }
     } else {
       p.fail("unknown record type '" + std::string(tag) + "'");
@@ -569,11 +569,13 @@ std::optional<StagePose> PoseInterpolator::at(Timestamp t) {
   }
   while (cursor_ + 1 < stage_.size() && stage_[cursor_ + 1].t <= t) ++cursor_;
   const StageSample& a = stage_[cursor_];
-  if (a.t == t || cursor_ + 1 == stage_.size()) return StagePose{a.x_mm, a.y_mm, a.z_mm, a.a_rad};
+  if (a.t == t || cursor_ + 1 == stage_.size()) return a.pose;
   const StageSample& b = stage_[cursor_ + 1];
   const double f = static_cast<double>(t.ns - a.t.ns) / static_cast<double>(b.t.ns - a.t.ns);
-  return StagePose{a.x_mm + (b.x_mm - a.x_mm) * f, a.y_mm + (b.y_mm - a.y_mm) * f,
-                   a.z_mm + (b.z_mm - a.z_mm) * f, a.a_rad + (b.a_rad - a.a_rad) * f};
+  const StagePose& p = a.pose;
+  const StagePose& q = b.pose;
+  return StagePose{p.x_mm + (q.x_mm - p.x_mm) * f, p.y_mm + (q.y_mm - p.y_mm) * f,
+                   p.z_mm + (q.z_mm - p.z_mm) * f, p.a_rad + (q.a_rad - p.a_rad) * f};
 }
 
 std::vector<MeasuredPoint> points_from_samples(
@@ -604,8 +606,7 @@ std::vector<MeasuredPoint> points_from_samples(
         {s.seq, s.index, s.t_host, *cached_x * optics.point_in_sensor(s.index, s.value_mm), false});
   }
   for (const ProbeTrigger& g : probe) {
-    const StagePose pose{g.x_mm, g.y_mm, g.z_mm, g.a_rad};
-    out.push_back({g.seq, 0, g.t, measured_probe_point(optics, calibration, pose), true});
+    out.push_back({g.seq, 0, g.t, measured_probe_point(optics, calibration, g.pose), true});
   }
   st.points = out.size();
   if (stats) *stats = st;

@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "scanmesh/drivers/samples.hpp"
 #include "scanmesh/recon/mesh.hpp"
 
 namespace scanmesh::sim {
@@ -94,13 +95,8 @@ class SensorOptics {
   Vec3 receiver_{};
 };
 
-/// Commanded or reported position of the machine axes.
-struct StagePose {
-  double x_mm = 0;
-  double y_mm = 0;
-  double z_mm = 0;
-  double a_rad = 0;  ///< rotary table, counter-clockwise about +z seen from above
-};
+/// Commanded or reported position of the machine axes (the drivers' type).
+using drivers::StagePose;
 
 /// Extrinsic calibration. Frames: the machine frame is fixed; the stage's X/Y/Z axes carry the
 /// sensor (sensor frame = translate(x, y, z) * mount in the machine frame); the part sits on the
