@@ -13,6 +13,7 @@
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/normals.hpp"
 #include "incremental_grid.hpp"
+#include "incremental_job.hpp"
 #include "incremental_store.hpp"
 
 namespace scanmesh::recon {
@@ -81,6 +82,7 @@ struct IncrementalReconstructor::State {
 
   detail::CubeGrid grid;
   detail::PublishedMesh mesh;
+  detail::JobMesher jobs{opt.reconstruct, grid, mesh};
   std::vector<Vec3> far;  // points beyond the grid's reach
 
   std::size_t meshing_steps = 0, meshed_blocks_total = 0, reopened = 0, deltas = 0;
@@ -147,74 +149,19 @@ struct IncrementalReconstructor::State {
     mesh_blocks(std::span<const std::uint32_t>(ready.data(), take_n), false);
   }
 
-  /// Marks `blocks` meshed and re-meshes every meshed block (this version: the batch pipeline
-  /// over all of them). final: the whole cloud, at finish().
+  /// Meshes `blocks` (ready, ascending) as one job, then marks them meshed. final: at finish()
+  /// (then the caller runs the closing passes).
   void mesh_blocks(std::span<const std::uint32_t> blocks, bool final) {
     const double t0 = now();
-    for (std::uint32_t b : blocks) grid.mark_meshed(b);
     ++meshing_steps;
     meshed_blocks_total += blocks.size();
-    // The kept points of every meshed block: frozen vertices first, then by closeness to their
-    // cube's centre, thinned to 0.65 cube (as the batch path's cube_reduce_thin).
-    const std::vector<std::uint32_t> cubes = grid.thinned_cubes_of_meshed_blocks();
-    std::vector<Vec3> pts(cubes.size()), towards;
-    if (any_sensor) towards.resize(cubes.size());
-    for (std::size_t i = 0; i < cubes.size(); ++i) {
-      const std::uint32_t c = cubes[i];
-      const std::uint32_t vid = grid.vertex_of(c);
-      pts[i] = vid != kNoId ? mesh.vertex(vid)
-                            : (opt.reconstruct.project ? grid.projected(c) : grid.rep(c));
-      if (any_sensor) towards[i] = grid.towards(c);
-    }
-    ReconstructOptions ro = opt.reconstruct;
-    ro.cube_mode = ReconstructOptions::CubeMode::kNone;
-    ro.project = false;
-    ReconstructResult r;
-    bool ok = pts.size() >= 3;
-    if (ok) {
-      try {
-        r = reconstruct(pts, ro, {}, towards);
-      } catch (const GeometryError&) {
-        if (final) throw;
-        ok = false;  // not a surface yet (too few points, collinear): wait for more
-      }
-    } else if (final) {
-      throw GeometryError("only " + std::to_string(pts.size()) +
-                          " point(s) kept: a surface needs at least 3");
-    }
-    if (ok) publish(cubes, pts, r.mesh);
+    jobs.run(blocks);
+    for (std::uint32_t b : blocks) grid.mark_meshed(b);
     times.add(final ? "finish" : "mesh", now() - t0);
-    if (clock) {
+    if (clock && !final) {
       const double t1 = now();
-      for (std::uint32_t b : blocks) {
-        const double s = grid.settled_at(b);
-        settle_latency.push_back(std::max(0.0, t1 - s));
-      }
+      for (std::uint32_t b : blocks) settle_latency.push_back(std::max(0.0, t1 - grid.settled_at(b)));
     }
-  }
-
-  /// Replaces the published triangles by `out` (whose vertices are points of `pts`, the kept
-  /// points of `cubes`): new vertices get ids, every old triangle is removed.
-  void publish(const std::vector<std::uint32_t>& cubes, const std::vector<Vec3>& pts,
-               const Mesh& out) {
-    // Output vertices are input points exactly (cube_mode none, no projection, no restore).
-    std::map<std::array<double, 3>, std::uint32_t> at;
-    for (std::size_t i = 0; i < pts.size(); ++i) at.emplace(std::array<double, 3>{pts[i].x(), pts[i].y(), pts[i].z()}, static_cast<std::uint32_t>(i));
-    std::vector<std::uint32_t> vid(out.vertices.size());
-    for (std::size_t v = 0; v < out.vertices.size(); ++v) {
-      const Vec3& q = out.vertices[v];
-      const auto it = at.find({q.x(), q.y(), q.z()});
-      if (it == at.end()) throw std::logic_error("incremental: output vertex not among the kept points");
-      const std::uint32_t c = cubes[it->second];
-      std::uint32_t id = grid.vertex_of(c);
-      if (id == kNoId) {
-        id = mesh.add_vertex(q);
-        grid.set_vertex(c, id);
-      }
-      vid[v] = id;
-    }
-    mesh.remove_all_triangles();
-    for (const Triangle& t : out.triangles) mesh.add_triangle({vid[t[0]], vid[t[1]], vid[t[2]]});
   }
 
   void settle_blocks(const Eigen::AlignedBox3d* box) {
@@ -319,18 +266,25 @@ IncrementalResult IncrementalReconstructor::finish() {
     if (s.buffer.empty()) throw GeometryError("no points: the input is empty");
     s.start_grid();
   }
+  s.finished = true;
   s.grid.force_settle(nullptr, t0);
-  s.mesh_blocks(s.grid.unmeshed_blocks(), true);
+  if (const std::vector<std::uint32_t> rest = s.grid.unmeshed_blocks(); !rest.empty())
+    s.mesh_blocks(rest, true);
+  s.jobs.close();
+  s.times.add("finish", s.now() - t0);
   s.finished = true;
   IncrementalResult res;
   const MeshSnapshot snap = s.mesh.snapshot();
   res.mesh = snap.to_mesh(&res.vertex_ids);
-  // Outliers: kept points (after thinning) that are no vertex of the final mesh.
-  std::vector<std::uint8_t> used(snap.vertex_count(), 0);
-  for (std::uint32_t id : res.vertex_ids) used[id] = 1;
-  for (std::uint32_t c : s.grid.thinned_cubes_of_meshed_blocks()) {
+  if (res.mesh.triangles.empty())
+    throw GeometryError("the " + std::to_string(s.grid.cube_count()) +
+                        " kept point(s) make no surface (too few, collinear or scattered)");
+  // Outliers: kept points (thinned, vertices first) that are no vertex of the final mesh.
+  std::vector<std::uint32_t> all(s.grid.block_count());
+  for (std::uint32_t b = 0; b < all.size(); ++b) all[b] = b;
+  for (std::uint32_t c : s.grid.thinned_cubes_of(all)) {
     const std::uint32_t id = s.grid.vertex_of(c);
-    if (id != kNoId && used[id]) continue;
+    if (id != kNoId && s.jobs.used(id)) continue;
     res.outliers.push_back(id != kNoId ? s.mesh.vertex(id)
                                        : (s.opt.reconstruct.project ? s.grid.projected(c) : s.grid.rep(c)));
   }

@@ -184,16 +184,17 @@ std::vector<std::uint32_t> CubeGrid::unmeshed_blocks() const {
   return out;
 }
 
-std::vector<std::uint32_t> CubeGrid::thinned_cubes_of_meshed_blocks() const {
+std::vector<std::uint32_t> CubeGrid::thinned_cubes_of(std::span<const std::uint32_t> job) const {
   std::vector<std::uint32_t> cand;
-  for (const Block& b : blocks_)
-    if (b.state == BlockState::kMeshed) cand.insert(cand.end(), b.cubes.begin(), b.cubes.end());
+  for (std::uint32_t b : job) cand.insert(cand.end(), blocks_[b].cubes.begin(), blocks_[b].cubes.end());
   std::sort(cand.begin(), cand.end(), [&](std::uint32_t a, std::uint32_t b) {
     const Cube &ca = cubes_[a], &cb = cubes_[b];
-    if (ca.vertex != cb.vertex) return ca.vertex < cb.vertex;  // vertices first, by id
+    if (ca.vertex != cb.vertex) return ca.vertex < cb.vertex;
     if (ca.d2 != cb.d2) return ca.d2 < cb.d2;
     return a < b;
   });
+  std::vector<std::uint8_t> in_job(blocks_.size(), 0);
+  for (std::uint32_t b : job) in_job[b] = 1;
   std::vector<std::uint8_t> kept(cubes_.size(), 0);
   const double r2 = 0.65 * 0.65 * cube_ * cube_;
   std::vector<std::uint32_t> out;
@@ -206,12 +207,53 @@ std::vector<std::uint32_t> CubeGrid::thinned_cubes_of_meshed_blocks() const {
         for (int dx = -1; dx <= 1 && !clash; ++dx) {
           if (dx == 0 && dy == 0 && dz == 0) continue;
           const std::uint32_t n = cube_table_.find(key(cc.x + dx, cc.y + dy, cc.z + dz));
-          clash = n != kNoId && kept[n] && (cubes_[n].rep - cc.rep).squaredNorm() < r2;
+          if (n == kNoId) continue;
+          const bool other = in_job[cubes_[n].block] ? kept[n] != 0 : cubes_[n].vertex != kNoId;
+          clash = other && (cubes_[n].rep - cc.rep).squaredNorm() < r2;
         }
     if (clash) continue;
     kept[c] = 1;
     out.push_back(c);
   }
+  return out;
+}
+
+std::vector<std::uint32_t> CubeGrid::neighbour_blocks(std::uint32_t block) const {
+  const Block& b = blocks_[block];
+  std::vector<std::uint32_t> out;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const std::uint32_t n = block_at(b.x + dx, b.y + dy, b.z + dz);
+        if (n != kNoId) out.push_back(n);
+      }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::uint32_t> CubeGrid::cubes_near(std::span<const std::uint32_t> job,
+                                                std::span<const std::uint32_t> ring,
+                                                int cubes) const {
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t r : ring)
+    for (std::uint32_t c : blocks_[r].cubes) {
+      const Cube& cc = cubes_[c];
+      bool near = false;
+      for (std::uint32_t j : job) {
+        const Block& b = blocks_[j];
+        const std::int64_t lo[3] = {std::int64_t{b.x} * block_cubes_, std::int64_t{b.y} * block_cubes_,
+                                    std::int64_t{b.z} * block_cubes_};
+        const std::int64_t at[3] = {cc.x, cc.y, cc.z};
+        bool in = true;
+        for (int k = 0; k < 3 && in; ++k)
+          in = at[k] >= lo[k] - cubes && at[k] < lo[k] + block_cubes_ + cubes;
+        if (in) {
+          near = true;
+          break;
+        }
+      }
+      if (near) out.push_back(c);
+    }
   return out;
 }
 

@@ -86,10 +86,6 @@ class CubeGrid {
   [[nodiscard]] std::vector<std::uint32_t> unmeshed_blocks() const;
   [[nodiscard]] double settled_at(std::uint32_t block) const { return blocks_[block].settled_at; }
 
-  /// The cubes of every meshed block whose kept points remain after thinning to 0.65 cube (as
-  /// cube_reduce_thin): vertices first (by id), then by distance to their cube's centre.
-  [[nodiscard]] std::vector<std::uint32_t> thinned_cubes_of_meshed_blocks() const;
-
   [[nodiscard]] std::uint32_t vertex_of(std::uint32_t c) const { return cubes_[c].vertex; }
   void set_vertex(std::uint32_t c, std::uint32_t id) { cubes_[c].vertex = id; }
   [[nodiscard]] const Vec3& rep(std::uint32_t c) const { return cubes_[c].rep; }
@@ -98,6 +94,22 @@ class CubeGrid {
   /// it (from their moments), by at most half a cube; unmoved with fewer than 6 points.
   [[nodiscard]] Vec3 projected(std::uint32_t c) const;
 
+  /// The kept points of `job` (blocks, ascending) that remain after thinning to 0.65 cube:
+  /// vertices first (by id), then by distance to their cube's centre (as cube_reduce_thin);
+  /// a point clashes with a kept one of the job or with a vertex around the job.
+  [[nodiscard]] std::vector<std::uint32_t> thinned_cubes_of(std::span<const std::uint32_t> job) const;
+  /// The blocks around `block` (itself included) that exist, ascending.
+  [[nodiscard]] std::vector<std::uint32_t> neighbour_blocks(std::uint32_t block) const;
+  [[nodiscard]] const std::vector<std::uint32_t>& cubes_of(std::uint32_t block) const {
+    return blocks_[block].cubes;
+  }
+  [[nodiscard]] std::uint32_t block_of(std::uint32_t c) const { return cubes_[c].block; }
+  [[nodiscard]] std::size_t block_count() const { return blocks_.size(); }
+  [[nodiscard]] BlockState state(std::uint32_t block) const { return blocks_[block].state; }
+  /// The cubes of the blocks `ring` within `cubes` cubes of a block of `job` (both ascending).
+  [[nodiscard]] std::vector<std::uint32_t> cubes_near(std::span<const std::uint32_t> job,
+                                                      std::span<const std::uint32_t> ring,
+                                                      int cubes) const;
   [[nodiscard]] std::size_t cube_count() const { return cubes_.size(); }
   [[nodiscard]] BlockCounts block_counts() const;
   [[nodiscard]] std::size_t heap_bytes() const;

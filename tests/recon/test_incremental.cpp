@@ -179,3 +179,13 @@ TEST_CASE("incremental: a second pass over meshed blocks re-opens them, one surf
   CHECK(test::layered_vertices(two, 0.5 * r.stats.cube_mm) > 1000);
   CHECK(test::mean_height_error(r.mesh) < 0.02);
 }
+
+TEST_CASE("scratch figures", "[.scratch]") {
+  const std::vector<Vec3> pts = raster_scan(200, 160, 0.1, 0.4, 0.01, 11);
+  const recon::IncrementalResult inc = run_batches(pts, 200);
+  const recon::ReconstructResult batch = recon::reconstruct(pts);
+  const recon::MeshReport ri = recon::analyze(inc.mesh), rb = recon::analyze(batch.mesh);
+  WARN("inc: v " << ri.vertices << " t " << ri.triangles << " loops " << ri.boundary_loops << " comps " << ri.components << " outliers " << inc.outliers.size() << " steps " << inc.stats.meshing_steps << " cube " << inc.stats.cube_mm);
+  WARN("batch: v " << rb.vertices << " t " << rb.triangles << " loops " << rb.boundary_loops << " comps " << rb.components << " outliers " << batch.outliers.size() << " reduced " << batch.reduced_points << " cube " << batch.cube_mm);
+  WARN("err inc " << test::mean_height_error(inc.mesh) << " batch " << test::mean_height_error(batch.mesh));
+}

@@ -158,13 +158,15 @@ struct IncrementalResult {
 /// moment. finish() gives the batch path's guarantees: manifold, consistently oriented, no
 /// crossing triangles, every kept point a vertex or an outlier.
 ///
-/// What this version does (recon/NOTEBOOK.md has the measurements): cube reduction is
-/// incremental (sparse hashed cubes in blocks of block_cubes^3, keep-nearest-to-centre as the
-/// batch path, per-cube moments for the projection, no raw point kept once the cube size is
-/// known); settling and re-opening are per block; each meshing step re-meshes every settled
-/// region at once with the batch pipeline, so its cost grows with the mesh (O(n^2) over a scan)
-/// and a re-meshing replaces the published triangles. Vertex ids are stable (a kept point that
-/// became a vertex is frozen).
+/// How (recon/NOTEBOOK.md has the measurements): cube reduction is incremental (sparse hashed
+/// cubes in blocks of block_cubes^3, keep-nearest-to-centre as the batch path, per-cube moments
+/// for the projection, no raw point kept once the cube size is known); settling and re-opening
+/// are per block; a job meshes the kept points of ready blocks with the advancing front
+/// continuing the published triangles around them (their neighbours' borders), so blocks join
+/// without seams, and publishes the difference. finish() meshes the rest, closes the sampling
+/// gaps between jobs (the batch path's gap closing, over the whole mesh) and turns closed
+/// components outward. Not done incrementally: the batch path's insertion of left-out points,
+/// slit zipping, untangling, feature restoring and border peeling.
 ///
 /// Not thread-safe: one thread calls it (snapshots may be read from any thread).
 class IncrementalReconstructor {
