@@ -99,6 +99,8 @@ std::uint64_t total_sensor_samples(const sim::SimulatedScanner& backend) {
 }  // namespace
 
 TEST_CASE("Pipeline: a simulated scan of the container is recorded and meshed", "[acq]") {
+  const bool incremental = GENERATE(false, true);
+  INFO((incremental ? "incremental" : "batch") << " mesher");
   const recon::Mesh part = sim::make_part("container");
   sim::SimulatedScanner backend(part, container_scan(), at_speed(0));
   const std::uint64_t total = total_sensor_samples(backend);
@@ -107,8 +109,13 @@ TEST_CASE("Pipeline: a simulated scan of the container is recorded and meshed", 
   Events events;
   acq::PipelineConfig pc;
   pc.parameters_json = R"({"scan":"container"})";
-  acq::Pipeline pipeline(backend, std::move(recorder), std::make_unique<acq::BatchMesher>(), pc,
-                         events.callback());
+  std::unique_ptr<acq::Mesher> mesher;
+  if (incremental) {
+    mesher = std::make_unique<acq::IncrementalMesher>();
+  } else {
+    mesher = std::make_unique<acq::BatchMesher>();
+  }
+  acq::Pipeline pipeline(backend, std::move(recorder), std::move(mesher), pc, events.callback());
   pipeline.start();
   REQUIRE(pipeline.wait() == acq::ScanState::kCompleted);
   const auto st = pipeline.stats();
@@ -146,10 +153,10 @@ TEST_CASE("Pipeline: pause, resume, snapshots while scanning, a device lost and 
   const std::uint64_t total = total_sensor_samples(backend);
   Events events;
   acq::Pipeline pipeline(backend, std::make_unique<MemoryRecorder>(),
-                         std::make_unique<acq::BatchMesher>(), {}, events.callback());
+                         std::make_unique<acq::IncrementalMesher>(), {}, events.callback());
   pipeline.start();
-  // Wait until points flow, then take a snapshot mid-scan.
-  while (pipeline.stats().points < 5000) REQUIRE_FALSE(pipeline.wait_for(10ms));
+  // Wait until the first regions are meshed, then take a snapshot mid-scan.
+  while (pipeline.stats().mesh.triangles == 0) REQUIRE_FALSE(pipeline.wait_for(5ms));
   const recon::Mesh partial = pipeline.snapshot();
   const auto pr = recon::analyze(partial);
   CHECK(pr.triangles > 0);

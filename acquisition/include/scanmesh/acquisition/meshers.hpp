@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "scanmesh/acquisition/pipeline.hpp"
+#include "scanmesh/recon/incremental.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 
 namespace scanmesh::acq {
@@ -30,6 +31,28 @@ class BatchMesher final : public Mesher {
   std::vector<recon::Vec3> points_;
   std::vector<recon::Vec3> towards_;
   recon::ReconstructResult last_;
+  MeshProgress progress_;
+};
+
+/// Meshes while the scan runs (recon::IncrementalReconstructor): regions the scan has left are
+/// meshed and published; snapshot() copies the published mesh (O(mesh), no re-meshing). Each
+/// point's sensor position orients the surface. Settling follows the point sequence, not the
+/// batch cuts, so a replay in the recorded order gives the live mesh exactly.
+class IncrementalMesher final : public Mesher {
+ public:
+  explicit IncrementalMesher(recon::IncrementalOptions options = {});
+  void add(std::span<const MeasuredPoint> points) override;
+  MeshProgress progress() const override { return progress_; }
+  recon::Mesh snapshot() override;
+  recon::Mesh finish() override;
+  /// The final result's details (outliers, stats), after finish().
+  const recon::IncrementalResult& result() const { return result_; }
+
+ private:
+  void take_delta();
+  recon::IncrementalReconstructor core_;
+  std::vector<recon::Vec3> points_, sensors_;  // one batch, reused
+  recon::IncrementalResult result_;
   MeshProgress progress_;
 };
 
