@@ -158,7 +158,8 @@ bool Pipeline::wait_for(std::chrono::milliseconds timeout) {
 PipelineStats Pipeline::stats() const {
   std::lock_guard lock(state_mutex_);
   PipelineStats s = stats_;
-  if (stats_.state != ScanState::kIdle) s.elapsed = std::chrono::steady_clock::now() - started_;
+  if (stats_.state != ScanState::kIdle)
+    s.elapsed = (over_ ? ended_ : std::chrono::steady_clock::now()) - started_;
   return s;
 }
 
@@ -421,6 +422,7 @@ void Pipeline::mesh_loop() {
     stats_.meshing_lag = 0;
     final_state = final_state_;
     reason = final_reason_;
+    ended_ = std::chrono::steady_clock::now();
   }
   // Observers hear the final state before wait() returns.
   set_state(final_state, reason);
@@ -429,6 +431,7 @@ void Pipeline::mesh_loop() {
     std::lock_guard mesh_lock(mesh_mutex_);
     std::lock_guard lock(state_mutex_);
     over_ = true;
+    stats_.elapsed = ended_ - started_;
     // Snapshot requests that came in after the final mesh get it.
     for (auto& r : snapshot_requests_) r.set_value(result_);
     snapshot_requests_.clear();

@@ -214,6 +214,7 @@ class Pipeline {
   bool recorder_failed_ = false;  // ingest thread
   bool auto_paused_ = false;
   std::chrono::steady_clock::time_point started_;
+  std::chrono::steady_clock::time_point ended_;
   std::chrono::steady_clock::time_point last_progress_;
 
   recon::Mesh result_;
