@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 #include <fstream>
 
+#include "journal/independent_reader.hpp"
 #include "journal/journal_support.hpp"
 #include "journal/scenario.hpp"
 #include "scanmesh/acquisition/journal.hpp"

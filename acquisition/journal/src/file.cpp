@@ -168,6 +168,21 @@ int File::write_all(std::span<const std::span<const std::byte>> parts) noexcept 
   return 0;
 }
 
+int File::write_at(std::uint64_t offset, std::span<const std::byte> bytes) noexcept {
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t w =
+        ::pwrite(fd_, bytes.data() + done, bytes.size() - done, static_cast<off_t>(offset + done));
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return errno;
+    }
+    if (w == 0) return EIO;
+    done += static_cast<std::size_t>(w);
+  }
+  return 0;
+}
+
 int File::seek(std::uint64_t offset) noexcept {
   return ::lseek(fd_, static_cast<off_t>(offset), SEEK_SET) < 0 ? errno : 0;
 }

@@ -49,6 +49,8 @@ class File {
   /// Writes all of the buffers at the current position (writev, retried on short writes and
   /// EINTR). Returns 0 on success or the errno of the failure.
   [[nodiscard]] int write_all(std::span<const std::span<const std::byte>> parts) noexcept;
+  /// Writes all of `bytes` at `offset` (pwrite), not moving the position. Returns 0 or errno.
+  [[nodiscard]] int write_at(std::uint64_t offset, std::span<const std::byte> bytes) noexcept;
   /// Moves the write position (lseek). Returns 0 or errno.
   [[nodiscard]] int seek(std::uint64_t offset) noexcept;
   /// ftruncate; returns 0 or errno.

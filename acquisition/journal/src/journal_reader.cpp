@@ -217,6 +217,10 @@ nlohmann::json to_json(const JournalReport& r) {
   j["chunks"] = s.chunks.size();
   j["crc_failures"] = s.crc_failures;
   j["damage"] = damage_json(s);
+  nlohmann::json wrapped = nlohmann::json::array();
+  for (const auto& d : s.wrapped_damage)
+    wrapped.push_back({{"offset", d.offset}, {"bytes", d.length}});
+  j["wrapped_damage"] = wrapped;
   j["torn_tail"] = s.torn_tail ? nlohmann::json{{"offset", s.torn_offset}, {"bytes", s.torn_bytes}}
                                : nlohmann::json(nullptr);
   j["data_end"] = s.data_end_offset.has_value();
@@ -255,6 +259,7 @@ nlohmann::json to_json(const JournalRecovery& rec) {
   j["crc_failures"] = s.crc_failures;
   j["skipped_damage"] = damage_json(s);
   j["reindexed_chunks"] = m.reindexed_chunks;
+  j["wrapped_damage"] = m.wrapped_regions;
   j["summary_rewritten"] = !m.already_complete;
   j["channels"] = channels_json(rec.kept);
   return j;

@@ -58,6 +58,18 @@ RecoveryReport recover_file(File& file, ScanVisitor* visitor) {
   }
   crc = crc32_combine(crc, crc32_update(0, out.span()), out.size());
 
+  // Damaged regions before the cut become application records that span them, so that a
+  // streaming reader steps over them; the data section's CRC is then not available.
+  std::vector<std::pair<std::uint64_t, ByteBuffer>> wraps;
+  for (const Damage& d : s.damage) {
+    if (d.offset + d.length > cut || d.length < kRecordPrefix) continue;
+    ByteBuffer prefix;
+    prefix.put(kDamagedRegionOpcode);
+    prefix.put(static_cast<std::uint64_t>(d.length - kRecordPrefix));
+    wraps.emplace_back(d.offset, std::move(prefix));
+  }
+  if (!wraps.empty()) crc = 0;
+
   SummaryInput in;
   in.data_end_offset = cut + out.size();
   in.data_section_crc = crc;
@@ -76,6 +88,11 @@ RecoveryReport recover_file(File& file, ScanVisitor* visitor) {
                                 errno_text(e) + " (run recover again: it starts from the scan)",
                             e);
   };
+  for (const auto& [offset, prefix] : wraps) {
+    if (const int e = file.write_at(offset, prefix.span()); e != 0)
+      fail(e, "marking the damaged region at byte " + std::to_string(offset));
+    ++rr.wrapped_regions;
+  }
   if (const int e = file.truncate(cut); e != 0)
     fail(e, "cutting the file at byte " + std::to_string(cut));
   if (const int e = file.seek(cut); e != 0) fail(e, "seeking to byte " + std::to_string(cut));

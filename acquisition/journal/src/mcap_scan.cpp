@@ -5,6 +5,7 @@
 // SPDX-License-Identifier: MIT
 #include <algorithm>
 #include <cstring>
+#include <limits>
 #include <optional>
 
 #include "bytes.hpp"
@@ -180,7 +181,7 @@ class Scanner {
   bool read_magic() {
     const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(size_, kMagic.size()));
     const auto head = n > 0 ? win_.get(0, n) : std::span<const std::byte>{};
-    if (std::memcmp(head.data(), kMagic.data(), n) != 0)
+    if (n > 0 && std::memcmp(head.data(), kMagic.data(), n) != 0)
       throw InputError("journal " + r_.file + ": not an MCAP file (it does not start with the " +
                        "MCAP magic bytes)");
     if (n < kMagic.size()) {  // cut before the header was written
@@ -348,9 +349,12 @@ class Scanner {
     }
   }
 
-  /// The end of the Message Index records starting at q (q itself when there are none).
-  std::uint64_t skip_index_records(std::uint64_t q) {
-    while (size_ - q >= kRecordPrefix) {
+  /// The end of the Message Index records starting at q (q itself when there are none); stops
+  /// once `limit` bytes are covered.
+  std::uint64_t skip_index_records(
+      std::uint64_t q, std::uint64_t limit = std::numeric_limits<std::uint64_t>::max()) {
+    const std::uint64_t from = q;
+    while (size_ - q >= kRecordPrefix && q - from < limit) {
       const auto pre = win_.get(q, kRecordPrefix);
       const auto op = load<std::uint8_t>(pre.data());
       const auto len = load<std::uint64_t>(pre.data() + 1);
@@ -547,7 +551,7 @@ class Scanner {
     win_.crc_to(end);
 
     // The Message Index records after it must be exactly those the chunk implies.
-    const std::uint64_t index_end = skip_index_records(end);
+    const std::uint64_t index_end = skip_index_records(end, expected_.size());
     const std::uint64_t region = index_end - end;
     bool intact = region == expected_.size();
     if (intact && region > 0) {
@@ -563,9 +567,9 @@ class Scanner {
       good(index_end);
       return index_end;
     }
-    if (extras_ != nullptr)
-      extras_->missing_indexes[r_.chunks.size()] =
-          std::vector<std::byte>(expected_.data(), expected_.data() + expected_.size());
+    pending_.emplace_back(
+        r_.chunks.size(),
+        std::vector<std::byte>(expected_.data(), expected_.data() + expected_.size()));
     r_.chunks.push_back(std::move(info));
     close_damage(pos);
     good(end);
@@ -643,10 +647,14 @@ class Scanner {
           next = skip_damage(pos, "a Data End record of the wrong size");
           break;
         case Opcode::kMessageIndex:
-          next = skip_damage(pos, "Message Index records after no good chunk");
+          next = handle_relocated_indexes(pos);
           break;
         default:
-          if (op >= 0x80) {  // private records: skipped as the spec says
+          if (op == kDamagedRegionOpcode) {
+            r_.wrapped_damage.push_back(
+                {pos, kRecordPrefix + len, "damaged bytes wrapped by recover"});
+          }
+          if (op >= 0x80) {  // application records: skipped as the spec says
             close_damage(pos);
             good(end);
           } else {
@@ -656,6 +664,38 @@ class Scanner {
       if (!next) return;
       pos = *next;
     }
+  }
+
+  /// Message Index records that follow no chunk: those recover wrote at the end of the data
+  /// section for chunks whose own were missing or damaged (all of them, in chunk order).
+  std::optional<std::uint64_t> handle_relocated_indexes(std::uint64_t pos) {
+    const std::uint64_t q = skip_index_records(pos);
+    std::uint64_t total = 0;
+    for (const auto& [i, bytes] : pending_) total += bytes.size();
+    if (!pending_.empty() && q - pos == total && total <= kMaxRecordBytes) {
+      const auto found = win_.get(pos, static_cast<std::size_t>(total));
+      std::size_t off = 0;
+      bool same = true;
+      for (const auto& [i, bytes] : pending_) {
+        same = same && std::memcmp(found.data() + off, bytes.data(), bytes.size()) == 0;
+        off += bytes.size();
+      }
+      if (same) {
+        std::uint64_t base = pos;
+        for (const auto& [i, bytes] : pending_) {
+          ChunkInfo& c = r_.chunks[i];
+          c.message_index_offsets = index_layout(bytes, base);
+          c.message_index_length = bytes.size();
+          c.index_intact = true;
+          base += bytes.size();
+        }
+        pending_.clear();
+        close_damage(pos);
+        good(q);
+        return q;
+      }
+    }
+    return skip_damage(pos, "Message Index records after no good chunk");
   }
 
   std::optional<std::uint64_t> handle_plain(std::uint64_t pos, std::uint8_t op, std::uint64_t len) {
@@ -846,6 +886,8 @@ class Scanner {
   }
 
   void finish() {
+    if (extras_ != nullptr)
+      for (auto& [i, bytes] : pending_) extras_->missing_indexes[i] = std::move(bytes);
     if (r_.data_end_offset) return;
     // No Data End: whatever follows the last good record is the torn tail of a write that was
     // cut short (damage found there is part of it).
@@ -874,6 +916,8 @@ class Scanner {
   std::vector<std::tuple<std::uint16_t, std::size_t, std::uint64_t>> by_channel_;
   ByteBuffer expected_;
   std::vector<std::byte> scratch_;
+  /// Good chunks whose message indexes were not found after them: the records they imply.
+  std::vector<std::pair<std::size_t, std::vector<std::byte>>> pending_;
 };
 
 }  // namespace

@@ -58,6 +58,10 @@ enum class Opcode : std::uint8_t {
   kDataEnd = 0x0F,
 };
 
+/// The application record (MCAP reserves 0x80-0xFF for them; readers skip them) that recover
+/// turns a damaged region into: its content is the damaged bytes after the first nine.
+inline constexpr std::uint8_t kDamagedRegionOpcode = 0x80;
+
 using StringMap = std::map<std::string, std::string>;
 
 struct Schema {
@@ -217,6 +221,8 @@ struct ScanReport {
   bool header_ok = false;
   std::vector<ChunkInfo> chunks;  ///< the good ones, in file order
   std::vector<Damage> damage;     ///< skipped regions before the end of the good data
+  /// Damaged regions an earlier recover wrapped in kDamagedRegionOpcode records.
+  std::vector<Damage> wrapped_damage;
   std::uint64_t crc_failures = 0;
   /// Where the last whole, good record of the data section ends (recovery cuts here).
   std::uint64_t good_end = 0;
@@ -279,6 +285,7 @@ struct RecoveryReport {
   std::uint64_t cut_offset = 0;        ///< where the file was cut
   std::uint64_t cut_bytes = 0;         ///< how many bytes were cut off (torn tail, old summary)
   std::uint64_t reindexed_chunks = 0;  ///< chunks whose message indexes were written again
+  std::uint64_t wrapped_regions = 0;   ///< damaged regions wrapped in kDamagedRegionOpcode records
   std::uint64_t kept_chunks = 0;
   std::uint64_t kept_messages = 0;
   std::uint64_t file_bytes_after = 0;
@@ -286,8 +293,10 @@ struct RecoveryReport {
 
 /// Makes a file left by a crash readable by any MCAP reader: keeps every good chunk, cuts the
 /// torn tail (or an old summary), writes message indexes a good chunk lacks, then the data end,
-/// a summary of the good chunks and the footer. Damaged regions in the middle stay where they
-/// are, outside the index. A complete file is left untouched. Never rewrites a byte it keeps.
+/// a summary of the good chunks and the footer. A damaged region in the middle stays where it
+/// is, outside the index, its first nine bytes replaced by the prefix of a kDamagedRegionOpcode
+/// record that spans it (so streaming readers step over it). Never rewrites a byte of a good
+/// record. A complete file is left untouched; running it again changes nothing.
 /// Throws InputError when the file is not MCAP or another process holds its lock (a writer),
 /// JournalWriteError when it cannot be written.
 RecoveryReport recover(const std::filesystem::path& file, ScanVisitor* visitor = nullptr);
