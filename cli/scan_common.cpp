@@ -56,8 +56,8 @@ int report_scan(const acq::Pipeline& pipeline, const acq::PipelineStats& st,
     std::cout << "\n";
   }
   switch (st.state) {
-    case acq::ScanState::kCompleted:
-    case acq::ScanState::kStopped:
+    case acq::PipelineState::kCompleted:
+    case acq::PipelineState::kStopped:
       if (!have_mesh)
         throw GeometryError(out.what + ": no surface to mesh (is the part in range?)");
       return kExitOk;

@@ -15,6 +15,7 @@
 #include "journal/independent_reader.hpp"
 #include "journal/journal_support.hpp"
 #include "journal/scenario.hpp"
+#include "scanmesh/acquisition/catalog.hpp"
 #include "scanmesh/acquisition/journal.hpp"
 
 using namespace scanmesh;
@@ -307,7 +308,9 @@ TEST_CASE("A full disk (RLIMIT_FSIZE) stops the journal with an error naming it;
   TempDir dir;
   const auto p = dir / "full.mcap";
   constexpr rlim_t kLimit = 3'000'000;
-  const RunResult r = run_program(JOURNAL_CRASH_WRITER, dir, {p.string(), "--quiet"}, kLimit);
+  const auto db = dir / "catalog.sqlite";
+  const RunResult r = run_program(JOURNAL_CRASH_WRITER, dir,
+                                  {p.string(), "--quiet", "--catalog", db.string()}, kLimit);
   CHECK(r.status == 3);
   CHECK_THAT(r.err, Catch::Contains("journal " + p.string()) && Catch::Contains("File too large") &&
                         Catch::Contains("samples recorded"));
@@ -328,4 +331,14 @@ TEST_CASE("A full disk (RLIMIT_FSIZE) stops the journal with an error naming it;
   (void)acq::read_journal(p, checker);
   CHECK(checker.problem.empty());
   CHECK(checker.samples == acked);
+  // The catalog says why the scan stopped.
+  const auto scans = acq::Catalog::open_read_only(db).scans();
+  REQUIRE(scans.size() == 1);
+  CHECK(scans[0].state == acq::ScanState::kFailed);
+  CHECK_THAT(scans[0].stop_reason,
+             Catch::Contains(p.string()) && Catch::Contains("File too large"));
+  CHECK(scans[0].samples == acked);
+  REQUIRE(scans[0].segments.size() == 1);
+  CHECK(scans[0].segments[0].state == "closed");
+  CHECK(scans[0].segments[0].samples == acked);
 }
