@@ -7,6 +7,7 @@
 
 #include "commands.hpp"
 #include "scan_common.hpp"
+#include "scanmesh/acquisition/catalog.hpp"
 #include "scanmesh/acquisition/journal_backend.hpp"
 #include "scanmesh/acquisition/meshers.hpp"
 #include "scanmesh/acquisition/scanner_json.hpp"
@@ -19,6 +20,8 @@ namespace {
 struct ScanArgs {
   std::string sim;
   std::string journal;
+  std::string catalog;
+  std::string name;
   sim::ScanSettings scan;
   std::string cube = "auto";
   std::string mesher = "incremental";
@@ -26,6 +29,8 @@ struct ScanArgs {
   ScanOutput out;
   bool progress = false;
 };
+
+acq::WallTime wall_now() { return std::chrono::system_clock::now(); }
 
 int run_scan(const ScanArgs& args) {
   recon::Mesh part = load_scan_target(args.sim);
@@ -40,17 +45,55 @@ int run_scan(const ScanArgs& args) {
                                       {"scanner", acq::to_json(backend.model())},
                                       {"meshing", meshing}}
                            .dump();
+  // The catalog (if asked) is opened first: a scan it cannot record does not start.
+  std::optional<acq::Catalog> catalog;
+  std::int64_t scan_id = 0;
+  if (!args.catalog.empty()) catalog.emplace(acq::Catalog::open(args.catalog, wall_now()));
   auto recorder = std::make_unique<acq::JournalRecorder>(args.journal, backend.model());
+  if (catalog) {
+    const nlohmann::json model = acq::to_json(backend.model());
+    acq::NewScan ns;
+    ns.name = args.name.empty() ? args.sim : args.name;
+    ns.journal = std::filesystem::absolute(args.journal);
+    ns.devices = nlohmann::json{{"backend", "sim"}, {"source", args.sim}, {"sensors", model["sensors"]},
+                                {"stage", model["stage"]}};
+    nlohmann::json calibration = nlohmann::json::array();
+    for (const auto& s : model["sensors"]) calibration.push_back(s["calibration"]);
+    ns.calibration = nlohmann::json{{"sensors", calibration}, {"accumulator", model["accumulator"]}};
+    ns.reduction = nlohmann::json{{"cube", args.cube}};
+    ns.meshing = meshing;
+    scan_id = catalog->create_scan(ns, wall_now());
+  }
   acq::Pipeline pipeline(backend, std::move(recorder), std::move(mesher), pc);
   const acq::PipelineStats st = run_pipeline(pipeline, args.progress);
   ScanOutput out = args.out;
   out.what = "scan of " + args.sim + " (journal " + args.journal + ")";
-  return report_scan(pipeline, st, out,
-                     {{"source", args.sim},
-                      {"sensor", args.scan.sensor},
-                      {"path", args.scan.path},
-                      {"mesher", args.mesher},
-                      {"journal", args.journal}});
+  nlohmann::json extra{{"source", args.sim},
+                       {"sensor", args.scan.sensor},
+                       {"path", args.scan.path},
+                       {"mesher", args.mesher},
+                       {"journal", args.journal}};
+  if (catalog) extra["scan_id"] = scan_id;
+  int status = kExitOk;
+  std::exception_ptr report_error;
+  try {
+    status = report_scan(pipeline, st, out, extra);
+  } catch (...) {
+    report_error = std::current_exception();
+  }
+  if (catalog) {
+    const acq::ScanState state = st.state == acq::PipelineState::kCompleted ? acq::ScanState::kCompleted
+                                 : st.state == acq::PipelineState::kStopped ? acq::ScanState::kStopped
+                                                                            : acq::ScanState::kFailed;
+    catalog->finish(scan_id, state, st.reason, st.samples_recorded, st.points, wall_now());
+    if (!report_error && !pipeline.result().triangles.empty()) {
+      catalog->add_output(scan_id, std::filesystem::absolute(out.output), "mesh", wall_now());
+      if (!out.preview.empty())
+        catalog->add_output(scan_id, std::filesystem::absolute(out.preview), "preview", wall_now());
+    }
+  }
+  if (report_error) std::rethrow_exception(report_error);
+  return status;
 }
 
 }  // namespace
@@ -70,6 +113,9 @@ void add_scan_command(CLI::App& app, Runner& run) {
   cmd->add_option("--journal", args->journal,
                   "the scan journal to record every sample into (.mcap; must not exist)")
       ->required();
+  cmd->add_option("--catalog", args->catalog,
+                  "also record the scan in this scan catalog (SQLite; created if missing)");
+  cmd->add_option("--name", args->name, "the scan's name in the catalog (default: the --sim value)");
   cmd->add_option("--cube", args->cube,
                   "cube reduction edge, mm, or 'auto' (from the measured spacing)")
       ->capture_default_str();

@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include "scanmesh/acquisition/catalog.hpp"
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/deviation.hpp"
@@ -19,8 +20,9 @@ TEST_CASE("scan --sim: a simulated scan of the steps meshed while it runs", "[ac
   const auto r = test::run_program(SCANMESH_EXE, dir,
                                    {"scan", "--sim", "steps", "--sensor", "line", "--spacing",
                                     "0.3", "--noise", "0.01", "--journal",
-                                    (dir / "steps.mcap").string(), "-o", out.string(),
-                                    "--preview", png.string(), "--json"});
+                                    (dir / "steps.mcap").string(), "--catalog",
+                                    (dir / "catalog.sqlite").string(), "--name", "steps-1", "-o",
+                                    out.string(), "--preview", png.string(), "--json"});
   INFO(r.err);
   REQUIRE(r.status == 0);
   const auto j = nlohmann::json::parse(r.out);
@@ -45,6 +47,19 @@ TEST_CASE("scan --sim: a simulated scan of the steps meshed while it runs", "[ac
   CHECK(worst < 0.1);
   CHECK(std::filesystem::file_size(png) > 1000);
   CHECK(test::slurp(png).substr(1, 3) == "PNG");
+  // The catalog's row: completed, the acknowledged count, the journal and both outputs.
+  const auto catalog = acq::Catalog::open_read_only(dir / "catalog.sqlite");
+  const auto rec = catalog.scan(j["scan_id"].get<std::int64_t>());
+  REQUIRE(rec);
+  CHECK(rec->name == "steps-1");
+  CHECK(rec->state == acq::ScanState::kCompleted);
+  CHECK(rec->samples == j["recorded"].get<std::uint64_t>());
+  CHECK(rec->points == j["points"].get<std::uint64_t>());
+  REQUIRE(rec->segments.size() == 1);
+  CHECK(std::filesystem::path(rec->segments[0].path).filename() == "steps.mcap");
+  CHECK(rec->outputs.size() == 2);
+  CHECK(rec->meshing["mesher"] == "incremental");
+  CHECK(rec->devices["sensors"][0]["config"]["kind"] == "line");
 }
 
 TEST_CASE("scan: usage and input errors", "[acq][cli]") {
