@@ -460,8 +460,14 @@ class PlaybackEngine final : public ScanEngine {
         }
     }
     if (points.empty()) return nullptr;
-    auto m = std::make_shared<const recon::Mesh>(
-        recon::reconstruct(points, recon_options(params.cube_mm), {}, towards).mesh);
+    std::shared_ptr<const recon::Mesh> m;
+    try {
+      m = std::make_shared<const recon::Mesh>(
+          recon::reconstruct(points, recon_options(params.cube_mm), {}, towards).mesh);
+    } catch (const GeometryError& e) {
+      log_.warning("scan " + std::to_string(id) + ": its points make no mesh: " + e.what());
+      return nullptr;
+    }
     std::lock_guard lock(m_);
     meshes_[id] = m;
     return m;

@@ -11,6 +11,7 @@
 #include <functional>
 #include <thread>
 
+#include "daemon/eventually.hpp"
 #include "daemon/scripted_engine.hpp"
 #include "scanmesh/daemon/client.hpp"
 #include "scanmesh/daemon/daemon.hpp"
@@ -27,17 +28,6 @@ inline daemon::DaemonConfig harness_config(const TempDir& dir) {
   c.log_level = daemon::LogLevel::kDebug;
   c.progress_interval = std::chrono::milliseconds(20);
   return c;
-}
-
-/// Polls `done` until it holds or `timeout` passes (no fixed sleeps: the condition decides).
-inline bool eventually(const std::function<bool()>& done,
-                       std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  while (!done()) {
-    if (std::chrono::steady_clock::now() > end) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  return true;
 }
 
 class DaemonHarness {
