@@ -19,6 +19,7 @@
 #include <sstream>
 #include <thread>
 
+#include "scanmesh/acquisition/accumulator.hpp"
 #include "scanmesh/daemon/protocol.hpp"
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
@@ -186,28 +187,39 @@ std::vector<std::filesystem::path> journal_segments(const std::filesystem::path&
   return out;
 }
 
-/// Maps sensor samples to points as acquisition does (pose interpolated at the host time, the
-/// calibration applied), keeping for each point the direction towards the sensor.
-class PointMapper {
- public:
-  PointMapper(const sim::StreamHeader& header, std::span<const sim::StageSample> stage)
-      : optics_(header.sensor), calibration_(header.calibration), poses_(stage) {}
-
-  /// Maps one sample; false when it has no value or no pose (counted by the caller).
-  bool map(const sim::SensorSample& s, recon::Vec3& point, recon::Vec3& towards) {
-    if (s.status != sim::SensorStatus::kOk) return false;
-    const auto pose = poses_.at(s.t_host);
-    if (!pose) return false;
-    point = sim::measured_point(optics_, calibration_, *pose, s.index, s.value_mm);
-    towards = sim::part_from_sensor(calibration_, *pose).translation() - point;
-    return true;
+/// Delivers a stream's records in time order (stage first at equal times) from the positions
+/// `si` / `pi` up to `due`, calling `stage(k)` and `measurement(begin, end)` (one measurement:
+/// the samples sharing a seq). Returns the number of sensor samples delivered.
+template <class StageFn, class MeasurementFn>
+std::size_t deliver(const Source& src, std::size_t& si, std::size_t& pi, sim::Timestamp due,
+                    std::size_t max_samples, StageFn&& stage, MeasurementFn&& measurement) {
+  std::size_t delivered = 0;
+  while (delivered < max_samples) {
+    const bool stage_next = pi < src.stage.size() &&
+                            (si >= src.sensor.size() || src.stage[pi].t <= src.sensor[si].t_host);
+    if (stage_next) {
+      if (src.stage[pi].t > due) break;
+      stage(pi++);
+    } else if (si < src.sensor.size()) {
+      if (src.sensor[si].t_host > due) break;
+      std::size_t end = si + 1;
+      while (end < src.sensor.size() && src.sensor[end].seq == src.sensor[si].seq) ++end;
+      measurement(si, end);
+      delivered += end - si;
+      si = end;
+    } else {
+      break;
+    }
   }
+  return delivered;
+}
 
- private:
-  sim::SensorOptics optics_;
-  sim::Calibration calibration_;
-  sim::PoseInterpolator poses_;
-};
+/// Samples that are errors rather than misses (no target and over range are normal in a scan).
+std::uint64_t error_count(const acq::AccumulatorStats& st) {
+  using S = drivers::SensorStatus;
+  return st.invalid[static_cast<std::size_t>(S::kOk)] + st.invalid[static_cast<std::size_t>(S::kAlarm)] +
+         st.invalid[static_cast<std::size_t>(S::kDeviceError)] + st.no_pose() + st.lost;
+}
 
 recon::ReconstructOptions recon_options(double cube_mm) {
   recon::ReconstructOptions o;
@@ -450,14 +462,10 @@ class PlaybackEngine final : public ScanEngine {
     // A past scan: re-meshed from its journal.
     std::vector<recon::Vec3> points, towards;
     for (const auto& file : journal_segments(scans_dir_, id)) {
-      const sim::RecordedStream rec = read_journal(file);
-      PointMapper mapper(rec.header, rec.stage);
-      recon::Vec3 p, t;
-      for (const auto& s : rec.sensor)
-        if (mapper.map(s, p, t)) {
-          points.push_back(p);
-          towards.push_back(t);
-        }
+      for (const auto& p : sim::points_from_stream(read_journal(file))) {
+        points.push_back(p.point_mm);
+        towards.push_back(p.sensor_mm - p.point_mm);
+      }
     }
     if (points.empty()) return nullptr;
     std::shared_ptr<const recon::Mesh> m;
@@ -645,10 +653,18 @@ class PlaybackEngine final : public ScanEngine {
     }
     std::size_t si = 0, pi = 0;  // next sensor sample and stage sample to deliver
     Live live;
-    PointMapper mapper(src.header, src.stage);
-    std::uint64_t invalid = 0, gaps = 0;
+    // Acquisition's own mapping: stage poses interpolated at each sample, the calibration applied.
+    acq::Accumulator accumulator;
+    const std::uint16_t device = accumulator.add_sensor(src.header.sensor, src.header.calibration);
+    std::vector<acq::MeasuredPoint> mapped;
+    auto to_live = [&](std::vector<recon::Vec3>& points, std::vector<recon::Vec3>& towards) {
+      for (const auto& p : mapped) {
+        points.push_back(p.point_mm);
+        towards.push_back(p.sensor_mm - p.point_mm);
+      }
+      mapped.clear();
+    };
     std::uint64_t journal_before = 0;
-    std::optional<std::uint64_t> last_seq;
     int segment = 1;
     if (resumed) {
       // What the earlier segments acknowledged is kept; delivery continues after it. The source
@@ -669,20 +685,22 @@ class PlaybackEngine final : public ScanEngine {
         journal_before += std::filesystem::file_size(file, ec);
         ++segment;
       }
-      // A profile cut by the crash is delivered again whole, so the journal never holds half a
-      // measurement twice: step back to the start of the last (possibly partial) measurement.
-      si = recorded;
-      while (si > 0 && si < src.sensor.size() && src.sensor[si].seq == src.sensor[si - 1].seq) --si;
-      recorded = si;
-      pi = std::min<std::size_t>(recorded_stage, src.stage.size());
-      recon::Vec3 p, t;
-      for (std::size_t i = 0; i < si; ++i) {
-        if (mapper.map(src.sensor[i], p, t)) {
-          live.points.push_back(p);
-          live.towards.push_back(t);
-        }
-      }
-      if (si > 0) last_seq = src.sensor[si - 1].seq;
+      // The journal holds whole measurements (one line each): the recorded prefix is mapped again
+      // (without journalling it twice) and delivery continues after it.
+      std::size_t rs = 0, rp = 0;
+      const std::size_t stage_end = std::min<std::size_t>(recorded_stage, src.stage.size());
+      const std::size_t sensor_end = std::min<std::size_t>(recorded, src.sensor.size());
+      deliver(src, rs, rp, sim::Timestamp{INT64_MAX}, SIZE_MAX,
+              [&](std::size_t k) {
+                if (k < stage_end) accumulator.add_stage(src.stage[k], mapped);
+              },
+              [&](std::size_t b, std::size_t e) {
+                if (e <= sensor_end)
+                  accumulator.add_sensor_samples(device, std::span(src.sensor).subspan(b, e - b), mapped);
+              });
+      si = sensor_end;
+      pi = stage_end;
+      to_live(live.points, live.towards);
       std::lock_guard lock(m_);
       status_.counters.samples = recorded;
       status_.counters.points = live.points.size();
@@ -711,8 +729,6 @@ class PlaybackEngine final : public ScanEngine {
       }
     } join_mesher{mesher, *this, live};
 
-    const std::size_t mapped_from = si;
-    std::size_t mi = mapped_from;  // next sensor sample to map to a point
     const sim::Timestamp t0 = std::min(si < src.sensor.size() ? src.sensor[si].t_host : sim::Timestamp{INT64_MAX},
                                        pi < src.stage.size() ? src.stage[pi].t : sim::Timestamp{INT64_MAX});
     std::deque<std::pair<Clock::time_point, std::uint64_t>> window;  // rate over the last second
@@ -727,50 +743,29 @@ class PlaybackEngine final : public ScanEngine {
         if (stop_) break;
         active = elapsed_locked();
       }
-      // Deliver everything due, stage and sensor merged by time.
+      // Deliver everything due, stage and sensor merged by time: journal first, then mapping.
       const bool unpaced = params.playback <= 0;
       const sim::Timestamp due =
           unpaced ? sim::Timestamp{INT64_MAX}
                   : t0 + std::chrono::nanoseconds(static_cast<std::int64_t>(active * params.playback * 1e9));
-      std::size_t delivered = 0;
-      while (delivered < kChunk || !unpaced) {
-        const bool stage_next = pi < src.stage.size() &&
-                                (si >= src.sensor.size() || src.stage[pi].t <= src.sensor[si].t_host);
-        if (stage_next) {
-          if (src.stage[pi].t > due) break;
-          writer.on_stage(src.stage[pi++]);
-        } else if (si < src.sensor.size()) {
-          if (src.sensor[si].t_host > due) break;
-          std::size_t end = si + 1;
-          while (end < src.sensor.size() && src.sensor[end].seq == src.sensor[si].seq) ++end;
-          const auto seq = src.sensor[si].seq;
-          if (last_seq && seq > *last_seq + 1) gaps += seq - *last_seq - 1;
-          last_seq = seq;
-          writer.on_sensor(std::span(src.sensor).subspan(si, end - si));
-          delivered += end - si;
-          si = end;
-        } else {
-          break;
-        }
-      }
+      const std::size_t delivered = deliver(
+          src, si, pi, due, unpaced ? kChunk : SIZE_MAX,
+          [&](std::size_t k) {
+            writer.on_stage(src.stage[k]);
+            accumulator.add_stage(src.stage[k], mapped);
+          },
+          [&](std::size_t b, std::size_t e) {
+            const auto m = std::span(src.sensor).subspan(b, e - b);
+            writer.on_sensor(m);
+            accumulator.add_sensor_samples(device, m, mapped);
+          });
       const bool done = si >= src.sensor.size() && pi >= src.stage.size();
+      if (done) accumulator.finish(mapped);
       out.flush();  // what is flushed is acknowledged
       if (!out) throw OutputError(journal_path.string() + ": write failed (disk full?)");
-      // Map what has a stage pose on both sides (or everything at the end).
-      const sim::Timestamp last_stage = pi > 0 ? src.stage[pi - 1].t : sim::Timestamp{INT64_MIN};
       new_points.clear();
       new_towards.clear();
-      recon::Vec3 p, t;
-      while (mi < si && (done || src.sensor[mi].t_host <= last_stage)) {
-        if (mapper.map(src.sensor[mi], p, t)) {
-          new_points.push_back(p);
-          new_towards.push_back(t);
-        } else if (src.sensor[mi].status != sim::SensorStatus::kNoTarget &&
-                   src.sensor[mi].status != sim::SensorStatus::kOverRange) {
-          ++invalid;  // alarms, device errors, no pose
-        }
-        ++mi;
-      }
+      to_live(new_points, new_towards);
       const auto now = Clock::now();
       bool want_mesh = false;
       {
@@ -781,7 +776,7 @@ class PlaybackEngine final : public ScanEngine {
         c.samples = si;
         c.points = live.points.size();
         c.journal_bytes = journal_before + static_cast<std::uint64_t>(out.tellp());
-        c.errors = invalid + gaps;
+        c.errors = error_count(accumulator.stats());
         window.emplace_back(now, c.samples);
         while (window.size() > 2 && now - window.front().first > std::chrono::seconds(1)) window.pop_front();
         const double dt = std::chrono::duration<double>(now - window.front().first).count();

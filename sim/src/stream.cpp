@@ -558,58 +558,12 @@ void write_stream(const std::filesystem::path& file, const RecordedStream& strea
 // ---------------------------------------------------------------------------------------------
 // Samples -> points
 
-PoseInterpolator::PoseInterpolator(std::span<const StageSample> stage) : stage_(stage) {}
-
-std::optional<StagePose> PoseInterpolator::at(Timestamp t) {
-  if (stage_.empty() || t < stage_.front().t || t > stage_.back().t) return std::nullopt;
-  if (cursor_ >= stage_.size() || stage_[cursor_].t > t) {
-    const auto it = std::upper_bound(stage_.begin(), stage_.end(), t,
-                                     [](Timestamp v, const StageSample& s) { return v < s.t; });
-    cursor_ = static_cast<std::size_t>(it - stage_.begin()) - 1;
-  }
-  while (cursor_ + 1 < stage_.size() && stage_[cursor_ + 1].t <= t) ++cursor_;
-  const StageSample& a = stage_[cursor_];
-  if (a.t == t || cursor_ + 1 == stage_.size()) return a.pose;
-  const StageSample& b = stage_[cursor_ + 1];
-  const double f = static_cast<double>(t.ns - a.t.ns) / static_cast<double>(b.t.ns - a.t.ns);
-  const StagePose& p = a.pose;
-  const StagePose& q = b.pose;
-  return StagePose{p.x_mm + (q.x_mm - p.x_mm) * f, p.y_mm + (q.y_mm - p.y_mm) * f,
-                   p.z_mm + (q.z_mm - p.z_mm) * f, p.a_rad + (q.a_rad - p.a_rad) * f};
-}
-
 std::vector<MeasuredPoint> points_from_samples(
     const SensorOptics& optics, const Calibration& calibration, std::span<const StageSample> stage,
     std::span<const SensorSample> sensor, std::span<const ProbeTrigger> probe, PointStats* stats) {
-  PointStats st;
-  std::vector<MeasuredPoint> out;
-  out.reserve(sensor.size() + probe.size());
-  PoseInterpolator poses(stage);
-  std::optional<Timestamp> cached_t;
-  std::optional<Eigen::Isometry3d> cached_x;
-  for (const SensorSample& s : sensor) {
-    if (s.status != SensorStatus::kOk || !std::isfinite(s.value_mm) ||
-        s.index >= optics.ray_count()) {
-      ++st.invalid;
-      continue;
-    }
-    if (!cached_t || *cached_t != s.t_host) {
-      cached_t = s.t_host;
-      const auto pose = poses.at(s.t_host);
-      cached_x = pose ? std::optional(part_from_sensor(calibration, *pose)) : std::nullopt;
-    }
-    if (!cached_x) {
-      ++st.no_pose;
-      continue;
-    }
-    out.push_back(
-        {s.seq, s.index, s.t_host, *cached_x * optics.point_in_sensor(s.index, s.value_mm), false});
-  }
-  for (const ProbeTrigger& g : probe) {
-    out.push_back({g.seq, 0, g.t, measured_probe_point(optics, calibration, g.pose), true});
-  }
-  st.points = out.size();
-  if (stats) *stats = st;
+  acq::AccumulatorStats st;
+  auto out = acq::points_from_samples(optics, calibration, stage, sensor, probe, &st);
+  if (stats) *stats = PointStats{st.points, st.invalid_total(), st.no_pose()};
   return out;
 }
 
