@@ -3,6 +3,7 @@
 #include "scanmesh/daemon/server.hpp"
 
 #include <grp.h>
+#include <pthread.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -391,6 +392,7 @@ Server::Server(asio::io_context& io, DaemonConfig config, ScanEngine& engine, co
     });
   });
   now("watch", false, [](const proto::Request&) { return proto::Object(); });  // see run_command
+  asio::post(jobs_, [] { ::pthread_setname_np(::pthread_self(), "daemon-jobs"); });
 }
 
 Server::~Server() {

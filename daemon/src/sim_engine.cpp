@@ -4,6 +4,7 @@
 // SPDX-License-Identifier: MIT
 #include "sim_engine.hpp"
 
+#include <pthread.h>
 #include <toml++/toml.h>
 
 #include <algorithm>
@@ -598,6 +599,7 @@ class PlaybackEngine final : public ScanEngine {
   };
 
   void run_scan(ScanRecord rec, ScanParams params, std::optional<std::int64_t> resumed) noexcept {
+    ::pthread_setname_np(::pthread_self(), "scan-playback");  // visible in top -H and the bench
     std::string failure;
     try {
       play(rec, params, resumed.has_value());
@@ -650,6 +652,15 @@ class PlaybackEngine final : public ScanEngine {
       src.stage = std::move(s.stage);
     } else {
       src = simulate_source(params, info);
+    }
+    {
+      // Scanning time starts now that the samples are ready (the simulation's ray casting is the
+      // scanner's work, not scanning time).
+      std::lock_guard lock(m_);
+      if (status_.state == ScanState::kRunning) {
+        run_start_ = Clock::now();
+        active_s_ = 0;
+      }
     }
     std::size_t si = 0, pi = 0;  // next sensor sample and stage sample to deliver
     Live live;
@@ -813,6 +824,7 @@ class PlaybackEngine final : public ScanEngine {
   }
 
   void mesh_loop(Live& live, const ScanParams& params, std::int64_t id) noexcept {
+    ::pthread_setname_np(::pthread_self(), "scan-mesher");
     for (;;) {
       std::vector<recon::Vec3> points, towards;
       bool final = false;
