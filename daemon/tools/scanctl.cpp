@@ -143,9 +143,10 @@ void print_event(const proto::Message& m) {
 class ProgressBar {
  public:
   ProgressBar() : tty_(::isatty(2) != 0) {}
-  void show(const scanmesh::daemon::ScanStatus& s) {
+  /// Without a terminal, a line a second at most (and the final one, `force`).
+  void show(const scanmesh::daemon::ScanStatus& s, bool force = false) {
     const auto now = std::chrono::steady_clock::now();
-    if (!tty_ && now - last_ < std::chrono::seconds(1)) return;
+    if (!tty_ && !force && now - last_ < std::chrono::seconds(1)) return;
     last_ = now;
     constexpr int kWidth = 24;
     const double f = s.progress < 0 ? 0 : std::min(1.0, s.progress);
@@ -181,8 +182,9 @@ int wait_for_scan(Client& client, std::int64_t id, const Options& o) {
     if (m->event != "state" && m->event != "progress") continue;
     const auto s = proto::scan_status_from(m->body);
     if (s.id != id) continue;
-    if (!o.json) bar.show(s);
-    if (m->event == "state" && s.state == ScanState::kIdle) {
+    const bool over = m->event == "state" && s.state == ScanState::kIdle;
+    if (!o.json) bar.show(s, over);
+    if (over) {
       if (!o.json) {
         bar.done();
         std::printf("scan %lld '%s': %s, %s samples, %s points, %s triangles in %.1f s\n",
