@@ -63,9 +63,11 @@ int main(int argc, char** argv) {
   const int clients = argc > 1 ? std::atoi(argv[1]) : 50;
   const double playback = argc > 2 ? std::atof(argv[2]) : 40;
   const int pollers = argc > 3 ? std::atoi(argv[3]) : clients;
-  std::printf("bench_daemon (%s build): %d clients watching, %d of them asking status every 20 ms\n",
-              SCANMESH_BENCH_BUILD_TYPE, clients, pollers);
-  const auto dir = std::filesystem::temp_directory_path() / ("bench_daemon." + std::to_string(::getpid()));
+  std::printf(
+      "bench_daemon (%s build): %d clients watching, %d of them asking status every 20 ms\n",
+      SCANMESH_BENCH_BUILD_TYPE, clients, pollers);
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("bench_daemon." + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   DaemonConfig config;
   config.socket_path = dir / "control.sock";
@@ -86,7 +88,8 @@ int main(int argc, char** argv) {
     ::pthread_setname_np(::pthread_self(), "daemon-io");
     daemon.run();
   });
-  while (!std::filesystem::exists(config.socket_path)) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  while (!std::filesystem::exists(config.socket_path))
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
 
   std::atomic<bool> measuring{false}, done{false};
   std::mutex m;
@@ -113,8 +116,10 @@ int main(int argc, char** argv) {
           if (!msg) return;
           if (msg->cls == scanmesh::daemon::proto::MessageClass::kReply && msg->id == id) break;
         }
-        if (measuring) mine.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
-        std::this_thread::sleep_until(t0 + std::chrono::milliseconds(20) + std::chrono::microseconds(37 * i % 1000));
+        if (measuring)
+          mine.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+        std::this_thread::sleep_until(t0 + std::chrono::milliseconds(20) +
+                                      std::chrono::microseconds(37 * i % 1000));
       }
       std::lock_guard lock(m);
       rtt_ms.insert(rtt_ms.end(), mine.begin(), mine.end());
@@ -125,7 +130,9 @@ int main(int argc, char** argv) {
   Client ctl(config.socket_path);
   ctl.request("scan.start", scanmesh::daemon::proto::Object().set("name", "bench"));
   // Measure while samples flow (after the simulation's ray casting, which is the scanner's work).
-  auto status = [&] { return scanmesh::daemon::proto::status_info_from(ctl.request("status").body).scan; };
+  auto status = [&] {
+    return scanmesh::daemon::proto::status_info_from(ctl.request("status").body).scan;
+  };
   while (status().counters.samples == 0) std::this_thread::sleep_for(std::chrono::milliseconds(2));
   const auto cpu0 = thread_cpu();
   const auto s0 = status();
@@ -146,15 +153,19 @@ int main(int argc, char** argv) {
   const double samples = static_cast<double>(s1.counters.samples - s0.counters.samples);
   std::printf("ingest          %.0f samples/s over %.2f s (%.0f samples; target >= 400000)\n",
               samples / wall, wall, samples);
-  std::printf("status RTT      p50 %.3f ms, p99 %.3f ms, max %.3f ms over %zu round trips (target p99 < 5 ms)\n",
-              percentile(rtt_ms, 0.5), percentile(rtt_ms, 0.99), percentile(rtt_ms, 1.0), rtt_ms.size());
+  std::printf(
+      "status RTT      p50 %.3f ms, p99 %.3f ms, max %.3f ms over %zu round trips (target p99 < 5 "
+      "ms)\n",
+      percentile(rtt_ms, 0.5), percentile(rtt_ms, 0.99), percentile(rtt_ms, 1.0), rtt_ms.size());
   double daemon_cpu = 0;
   for (const char* name : {"daemon-io", "scan-playback", "daemon-jobs"}) {
-    const double used = (cpu1.count(name) ? cpu1.at(name) : 0) - (cpu0.count(name) ? cpu0.at(name) : 0);
+    const double used =
+        (cpu1.count(name) ? cpu1.at(name) : 0) - (cpu0.count(name) ? cpu0.at(name) : 0);
     std::printf("cpu %-14s %5.1f %% of one core\n", name, 100 * used / wall);
     daemon_cpu += used;
   }
-  std::printf("daemon overhead %5.1f %% of one core (io + playback + jobs; target < 10 %%)\n", 100 * daemon_cpu / wall);
+  std::printf("daemon overhead %5.1f %% of one core (io + playback + jobs; target < 10 %%)\n",
+              100 * daemon_cpu / wall);
   daemon.request_stop();
   io.join();
   for (auto& t : threads)

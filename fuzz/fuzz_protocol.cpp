@@ -51,7 +51,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const proto::Request r = proto::decode_request(line);
       read_everything(r.args, 0);
       // What the server sends back quotes parts of the request: it must always serialise.
-      (void)proto::error_line(r.id, proto::errc::kUnknownCommand, "unknown command '" + r.cmd + "'");
+      (void)proto::error_line(r.id, proto::errc::kUnknownCommand,
+                              "unknown command '" + r.cmd + "'");
     } catch (const proto::ProtocolError&) {
     }
     try {

@@ -67,9 +67,11 @@ void Client::send_raw(std::string_view bytes) {
 
 std::optional<std::string> Client::read_line() {
   boost::system::error_code ec;
-  const std::size_t n = asio::read_until(impl_->socket, asio::dynamic_buffer(impl_->buffer), '\n', ec);
+  const std::size_t n =
+      asio::read_until(impl_->socket, asio::dynamic_buffer(impl_->buffer), '\n', ec);
   if (ec == asio::error::eof || ec == asio::error::connection_reset) return std::nullopt;
-  if (ec == asio::error::would_block || ec == asio::error::try_again || ec == asio::error::timed_out)
+  if (ec == asio::error::would_block || ec == asio::error::try_again ||
+      ec == asio::error::timed_out)
     throw Error(impl_->path.string() + ": no answer from the daemon in time");
   if (ec) throw Error(impl_->path.string() + ": read failed: " + ec.message());
   std::string line = impl_->buffer.substr(0, n - 1);

@@ -109,8 +109,8 @@ class TableReader {
   std::set<std::string> seen_;
 };
 
-const toml::table* sub_table(const toml::table& root, std::string_view name, const std::string& source,
-                             std::vector<std::string>& problems) {
+const toml::table* sub_table(const toml::table& root, std::string_view name,
+                             const std::string& source, std::vector<std::string>& problems) {
   const toml::node* n = root.get(name);
   if (!n) return nullptr;
   if (const toml::table* t = n->as_table()) return t;
@@ -119,22 +119,22 @@ const toml::table* sub_table(const toml::table& root, std::string_view name, con
 }
 
 std::optional<LogLevel> log_level_from(std::string_view w) {
-  for (LogLevel l : {LogLevel::kError, LogLevel::kWarning, LogLevel::kNotice, LogLevel::kInfo,
-                     LogLevel::kDebug})
+  for (LogLevel l :
+       {LogLevel::kError, LogLevel::kWarning, LogLevel::kNotice, LogLevel::kInfo, LogLevel::kDebug})
     if (to_string(l) == w) return l;
   return std::nullopt;
 }
 
-void read_daemon(const toml::table* t, const std::string& source,
-                 const std::filesystem::path& base, DaemonConfig& c,
-                 std::vector<std::string>& problems) {
+void read_daemon(const toml::table* t, const std::string& source, const std::filesystem::path& base,
+                 DaemonConfig& c, std::vector<std::string>& problems) {
   TableReader r(t, "daemon", source, problems);
   // The socket is a runtime path, never relative to the configuration file.
   r.path("socket", c.socket_path, {});
   r.string("socket_group", c.socket_group, true);
   r.path("state_dir", c.state_dir, base);
   r.number("max_clients", c.max_clients, 1, 4096);
-  r.number("client_output_limit_bytes", c.client_output_limit_bytes, 64 * 1024, 1024.0 * 1024 * 1024);
+  r.number("client_output_limit_bytes", c.client_output_limit_bytes, 64 * 1024,
+           1024.0 * 1024 * 1024);
   std::int64_t interval_ms = c.progress_interval.count();
   r.number("progress_interval_ms", interval_ms, 10, 60000);
   c.progress_interval = std::chrono::milliseconds(interval_ms);
@@ -150,7 +150,8 @@ void read_daemon(const toml::table* t, const std::string& source,
   if (auto l = log_level_from(level))
     c.log_level = *l;
   else
-    r.problem("log_level", "must be one of error, warning, notice, info, debug, got '" + level + "'");
+    r.problem("log_level",
+              "must be one of error, warning, notice, info, debug, got '" + level + "'");
   r.check_unknown();
   if (!c.socket_path.is_absolute())
     r.problem("socket", "must be an absolute path, got '" + c.socket_path.string() + "'");
@@ -198,9 +199,8 @@ void read_sim(const toml::table* t, const std::string& source, const std::filesy
   r.check_unknown();
 }
 
-void read_replay(const toml::table* t, const std::string& source,
-                 const std::filesystem::path& base, ReplayBackendConfig& p, bool needed,
-                 std::vector<std::string>& problems) {
+void read_replay(const toml::table* t, const std::string& source, const std::filesystem::path& base,
+                 ReplayBackendConfig& p, bool needed, std::vector<std::string>& problems) {
   TableReader r(t, "replay", source, problems);
   r.path("stream", p.stream, base);
   r.number("playback", p.playback, 0, 10000);
@@ -218,7 +218,8 @@ void read_devices(const toml::table& root, const std::string& source,
                   std::vector<std::string>& problems) {
   const toml::node* n = root.get("devices");
   if (!n) {
-    if (needed) problems.push_back(source + ": devices: backend \"devices\" needs [[devices]] entries");
+    if (needed)
+      problems.push_back(source + ": devices: backend \"devices\" needs [[devices]] entries");
     return;
   }
   const toml::array* a = n->as_array();
@@ -240,8 +241,7 @@ void read_devices(const toml::table& root, const std::string& source,
         drivers::load_sensor_config(e.config);
       } catch (const Error& err) {
         std::istringstream lines(err.what());
-        for (std::string line; std::getline(lines, line);)
-          r.problem("config", line);
+        for (std::string line; std::getline(lines, line);) r.problem("config", line);
       }
     }
     c.devices.push_back(std::move(e));
@@ -270,11 +270,16 @@ void read_scan_defaults(const toml::table* t, const std::string& source, DaemonC
 
 std::string_view to_string(LogLevel level) {
   switch (level) {
-    case LogLevel::kError: return "error";
-    case LogLevel::kWarning: return "warning";
-    case LogLevel::kNotice: return "notice";
-    case LogLevel::kInfo: return "info";
-    case LogLevel::kDebug: return "debug";
+    case LogLevel::kError:
+      return "error";
+    case LogLevel::kWarning:
+      return "warning";
+    case LogLevel::kNotice:
+      return "notice";
+    case LogLevel::kInfo:
+      return "info";
+    case LogLevel::kDebug:
+      return "debug";
   }
   return "info";
 }
@@ -290,13 +295,14 @@ DaemonConfig parse_config(std::string_view toml_text, const std::filesystem::pat
         << e.description();
     throw ConfigError(msg.str());
   }
-  const std::filesystem::path base = source.empty() ? std::filesystem::path() : source.parent_path();
+  const std::filesystem::path base =
+      source.empty() ? std::filesystem::path() : source.parent_path();
   std::vector<std::string> problems;
   DaemonConfig c;
   c.source = source;
   for (const auto& [k, v] : root) {
-    static constexpr std::string_view kTables[] = {"daemon", "backend", "sim", "replay",
-                                                   "devices", "scan"};
+    static constexpr std::string_view kTables[] = {"daemon", "backend", "sim",
+                                                   "replay", "devices", "scan"};
     if (std::find(std::begin(kTables), std::end(kTables), k.str()) == std::end(kTables))
       problems.push_back(src + ": " + std::string(k.str()) + ": unknown table");
   }
@@ -346,7 +352,8 @@ std::vector<std::string> restart_needed(const DaemonConfig& a, const DaemonConfi
     out.push_back("replay");
   bool devices_same = a.devices.size() == b.devices.size();
   for (std::size_t i = 0; devices_same && i < a.devices.size(); ++i)
-    devices_same = a.devices[i].role == b.devices[i].role && a.devices[i].config == b.devices[i].config;
+    devices_same =
+        a.devices[i].role == b.devices[i].role && a.devices[i].config == b.devices[i].config;
   if (!devices_same) out.push_back("devices");
   return out;
 }

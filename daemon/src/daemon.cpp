@@ -45,12 +45,15 @@ std::string status_text(const ScanStatus& s, const std::vector<DeviceInfo>& devi
   for (const auto& d : devices) ok += d.state == DeviceState::kOk ? 1 : 0;
   const std::string dev = std::to_string(ok) + "/" + std::to_string(devices.size()) + " devices ok";
   switch (s.state) {
-    case ScanState::kIdle: return "idle, " + dev;
+    case ScanState::kIdle:
+      return "idle, " + dev;
     case ScanState::kRunning:
       return "scanning '" + s.name + "' (scan " + std::to_string(s.id) + "), " + dev;
     case ScanState::kPaused:
-      return "paused '" + s.name + "' (scan " + std::to_string(s.id) + "): " + s.reason + ", " + dev;
-    case ScanState::kStopping: return "stopping scan " + std::to_string(s.id) + ", " + dev;
+      return "paused '" + s.name + "' (scan " + std::to_string(s.id) + "): " + s.reason + ", " +
+             dev;
+    case ScanState::kStopping:
+      return "stopping scan " + std::to_string(s.id) + ", " + dev;
   }
   return dev;
 }
@@ -157,7 +160,9 @@ struct Daemon::Impl {
     try {
       std::error_code ec;
       std::filesystem::create_directories(config.state_dir, ec);
-      if (ec) throw ConfigError(config.state_dir.string() + ": cannot create the state folder: " + ec.message());
+      if (ec)
+        throw ConfigError(config.state_dir.string() +
+                          ": cannot create the state folder: " + ec.message());
       for (const auto& d : config.export_dirs) {
         std::filesystem::create_directories(d, ec);
         if (ec) log.warning(d.string() + ": cannot create the export folder: " + ec.message());
@@ -184,7 +189,8 @@ struct Daemon::Impl {
     }
     const std::string status = status_text(engine.status(), engine.devices());
     notifier.ready(status);
-    log.notice("scanmeshd " + version + " ready (" + std::string(engine.backend()) + " backend): " + status);
+    log.notice("scanmeshd " + version + " ready (" + std::string(engine.backend()) +
+               " backend): " + status);
     for (;;) {
       try {
         io.run();

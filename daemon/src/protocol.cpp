@@ -62,21 +62,29 @@ std::string dump_json(const Json& j) {
 
 const char* type_word(const Json& v) {
   switch (v.type()) {
-    case Json::value_t::null: return "null";
-    case Json::value_t::object: return "an object";
-    case Json::value_t::array: return "an array";
-    case Json::value_t::string: return "a string";
-    case Json::value_t::boolean: return "a boolean";
+    case Json::value_t::null:
+      return "null";
+    case Json::value_t::object:
+      return "an object";
+    case Json::value_t::array:
+      return "an array";
+    case Json::value_t::string:
+      return "a string";
+    case Json::value_t::boolean:
+      return "a boolean";
     case Json::value_t::number_integer:
-    case Json::value_t::number_unsigned: return "an integer";
-    case Json::value_t::number_float: return "a number";
-    default: return "something else";
+    case Json::value_t::number_unsigned:
+      return "an integer";
+    case Json::value_t::number_float:
+      return "a number";
+    default:
+      return "something else";
   }
 }
 
 [[noreturn]] void wrong_type(std::string_view key, const char* want, const Json& got) {
-  throw ProtocolError(errc::kBadArgument, "'" + std::string(key) + "' must be " + want +
-                                             ", got " + type_word(got));
+  throw ProtocolError(errc::kBadArgument,
+                      "'" + std::string(key) + "' must be " + want + ", got " + type_word(got));
 }
 
 /// The value under key, or nullptr when absent or null.
@@ -316,13 +324,18 @@ Request decode_request(std::string_view line) {
 Message decode_message(std::string_view line) {
   Json j = Json::parse(line, nullptr, false);
   if (j.is_discarded() || !j.is_object() || !j.contains("class") || !j["class"].is_string())
-    throw ProtocolError(errc::kInvalidJson, "not a protocol object: " + std::string(line.substr(0, 200)));
+    throw ProtocolError(errc::kInvalidJson,
+                        "not a protocol object: " + std::string(line.substr(0, 200)));
   Message m;
   m.class_name = j["class"].get<std::string>();
-  if (m.class_name == "HELLO") m.cls = MessageClass::kHello;
-  else if (m.class_name == "REPLY") m.cls = MessageClass::kReply;
-  else if (m.class_name == "ERROR") m.cls = MessageClass::kError;
-  else if (m.class_name == "EVENT") m.cls = MessageClass::kEvent;
+  if (m.class_name == "HELLO")
+    m.cls = MessageClass::kHello;
+  else if (m.class_name == "REPLY")
+    m.cls = MessageClass::kReply;
+  else if (m.class_name == "ERROR")
+    m.cls = MessageClass::kError;
+  else if (m.class_name == "EVENT")
+    m.cls = MessageClass::kEvent;
   m.body = Codec::wrap(std::move(j));
   if (const Json* id = find(Codec::json(m.body), "id"); id && id->is_number_integer())
     m.id = id->get<std::int64_t>();
@@ -454,7 +467,8 @@ DeviceInfo device_info_from(const Fields& f) {
   d.role = f.get_string("role").value_or("");
   d.driver = f.get_string("driver").value_or("");
   d.port = f.get_string("port").value_or("");
-  d.state = device_state_from_string(f.get_string("state").value_or("")).value_or(DeviceState::kClosed);
+  d.state =
+      device_state_from_string(f.get_string("state").value_or("")).value_or(DeviceState::kClosed);
   d.detail = f.get_string("detail").value_or("");
   d.samples = f.get_uint("samples").value_or(0);
   d.errors = f.get_uint("errors").value_or(0);

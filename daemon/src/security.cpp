@@ -97,7 +97,7 @@ ConfinedPath confine_output(const std::filesystem::path& requested,
                                ? "; its folder resolves to " + real_dir.string()
                                : std::string()));
   }
-  struct stat st{};
+  struct stat st {};
   if (::fstatat(dir, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) == 0) {
     if (S_ISLNK(st.st_mode)) refuse(requested, "is a symbolic link");
     if (!S_ISREG(st.st_mode)) refuse(requested, "exists and is not a regular file");

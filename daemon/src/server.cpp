@@ -53,7 +53,10 @@ std::string thousands(std::uint64_t v) {
 class Session : public std::enable_shared_from_this<Session> {
  public:
   Session(Server& server, std::uint64_t number, local::socket socket, PeerCredentials peer)
-      : server_(server), number_(number), socket_(std::move(socket)), peer_(peer),
+      : server_(server),
+        number_(number),
+        socket_(std::move(socket)),
+        peer_(peer),
         close_timer_(socket_.get_executor()) {}
 
   std::uint64_t number() const { return number_; }
@@ -77,11 +80,10 @@ class Session : public std::enable_shared_from_this<Session> {
     queued_bytes_ += line.size();
     if (queued_bytes_ > server_.config_.client_output_limit_bytes) {
       ++server_.stats_.dropped_slow;
-      server_.log_.warning(describe() + " is not reading: " +
-                           std::to_string(queued_bytes_ + inflight_bytes_) +
-                           " bytes unsent (limit " +
-                           std::to_string(server_.config_.client_output_limit_bytes) +
-                           "), disconnected");
+      server_.log_.warning(
+          describe() + " is not reading: " + std::to_string(queued_bytes_ + inflight_bytes_) +
+          " bytes unsent (limit " + std::to_string(server_.config_.client_output_limit_bytes) +
+          "), disconnected");
       close();
       return;
     }
@@ -124,11 +126,9 @@ class Session : public std::enable_shared_from_this<Session> {
 
  private:
   void read() {
-    asio::async_read_until(
-        socket_, asio::dynamic_buffer(in_, proto::kMaxLineBytes + 1), '\n',
-        [self = shared_from_this()](const boost::system::error_code& ec, std::size_t n) {
-          self->on_read(ec, n);
-        });
+    asio::async_read_until(socket_, asio::dynamic_buffer(in_, proto::kMaxLineBytes + 1), '\n',
+                           [self = shared_from_this()](const boost::system::error_code& ec,
+                                                       std::size_t n) { self->on_read(ec, n); });
   }
 
   void on_read(const boost::system::error_code& ec, std::size_t n) {
@@ -177,16 +177,17 @@ class Session : public std::enable_shared_from_this<Session> {
     // The limit bounds what waits in the queue; what is being written was counted there before.
     inflight_bytes_ = queued_bytes_;
     queued_bytes_ = 0;
-    asio::async_write(socket_, buffers_,
-                      [self = shared_from_this()](const boost::system::error_code& ec, std::size_t) {
-                        self->writing_ = false;
-                        self->inflight_bytes_ = 0;
-                        if (ec) {
-                          self->close();
-                          return;
-                        }
-                        self->write();
-                      });
+    asio::async_write(
+        socket_, buffers_,
+        [self = shared_from_this()](const boost::system::error_code& ec, std::size_t) {
+          self->writing_ = false;
+          self->inflight_bytes_ = 0;
+          if (ec) {
+            self->close();
+            return;
+          }
+          self->write();
+        });
   }
 
   Server& server_;
@@ -216,8 +217,14 @@ struct Server::Command {
 
 Server::Server(asio::io_context& io, DaemonConfig config, ScanEngine& engine, const Log& log,
                std::string version)
-    : io_(io), config_(std::move(config)), engine_(engine), log_(log), version_(std::move(version)),
-      started_(std::chrono::steady_clock::now()), acceptor_(io), accept_retry_(io),
+    : io_(io),
+      config_(std::move(config)),
+      engine_(engine),
+      log_(log),
+      version_(std::move(version)),
+      started_(std::chrono::steady_clock::now()),
+      acceptor_(io),
+      accept_retry_(io),
       progress_timer_(io) {
   auto now = [this](std::string name, bool privileged, auto fn) {
     Command c;
@@ -232,8 +239,8 @@ Server::Server(asio::io_context& io, DaemonConfig config, ScanEngine& engine, co
     commands_.emplace(std::move(name), std::move(c));
   };
   now("version", false, [this](const proto::Request&) {
-    return proto::to_object(VersionInfo{version_, proto::kMajor, proto::kMinor,
-                                        std::string(engine_.backend())});
+    return proto::to_object(
+        VersionInfo{version_, proto::kMajor, proto::kMinor, std::string(engine_.backend())});
   });
   now("status", false, [this](const proto::Request&) { return proto::to_object(status_info()); });
   now("devices", false, [this](const proto::Request&) {
@@ -281,14 +288,17 @@ Server::Server(asio::io_context& io, DaemonConfig config, ScanEngine& engine, co
   });
   auto scan_id = [](const proto::Request& r) {
     const auto id = r.args.get_int("scan");
-    if (!id) throw proto::ProtocolError(proto::errc::kBadArgument, "'scan' (a scan id) is required");
+    if (!id)
+      throw proto::ProtocolError(proto::errc::kBadArgument, "'scan' (a scan id) is required");
     return *id;
   };
   job("scan.info", false, [this, scan_id](const proto::Request& r) {
     const std::int64_t id = scan_id(r);
     return std::function<proto::Object()>([this, id] {
       const auto rec = engine_.scan_info(id);
-      if (!rec) throw EngineError(proto::errc::kNotFound, "no scan " + std::to_string(id) + " in the catalog");
+      if (!rec)
+        throw EngineError(proto::errc::kNotFound,
+                          "no scan " + std::to_string(id) + " in the catalog");
       proto::Object o;
       o.set("scan", proto::to_object(*rec));
       return o;
@@ -312,46 +322,54 @@ Server::Server(asio::io_context& io, DaemonConfig config, ScanEngine& engine, co
   });
   job("mesh.export", true, [this](const proto::Request& r) {
     const auto path = r.args.get_string("path");
-    if (!path) throw proto::ProtocolError(proto::errc::kBadArgument, "'path' (the file to write) is required");
+    if (!path)
+      throw proto::ProtocolError(proto::errc::kBadArgument,
+                                 "'path' (the file to write) is required");
     if (!meshio::writes_mesh_extension(*path))
       throw proto::ProtocolError(proto::errc::kBadArgument,
                                  "'path' must end in .stl, .ply or .obj, got '" + *path + "'");
     const std::optional<std::int64_t> scan = r.args.get_int("scan");
     const bool ascii = r.args.get_bool("ascii").value_or(false);
     const std::int64_t current = engine_.status().id;
-    return std::function<proto::Object()>([this, p = *path, scan, ascii, current,
-                                           dirs = config_.export_dirs] {
-      const ConfinedPath out = confine_output(p, dirs);
-      const auto mesh = engine_.mesh(scan);
-      if (!mesh || mesh->triangles.empty())
-        throw EngineError(proto::errc::kNoMesh, "no mesh yet for " + (scan ? "scan " + std::to_string(*scan) : std::string("the current scan")));
-      try {
-        meshio::write_mesh(*mesh, out.path(), meshio::WriteOptions{ascii});
-      } catch (const OutputError& e) {
-        throw EngineError(proto::errc::kIoError, e.what());
-      }
-      ExportInfo info;
-      info.scan = scan.value_or(current);
-      info.path = out.shown().string();
-      info.format = lower_extension(p);
-      info.vertices = mesh->vertices.size();
-      info.triangles = mesh->triangles.size();
-      std::error_code ec;
-      info.bytes = std::filesystem::file_size(out.path(), ec);
-      return proto::to_object(info);
-    });
+    return std::function<proto::Object()>(
+        [this, p = *path, scan, ascii, current, dirs = config_.export_dirs] {
+          const ConfinedPath out = confine_output(p, dirs);
+          const auto mesh = engine_.mesh(scan);
+          if (!mesh || mesh->triangles.empty())
+            throw EngineError(proto::errc::kNoMesh,
+                              "no mesh yet for " + (scan ? "scan " + std::to_string(*scan)
+                                                         : std::string("the current scan")));
+          try {
+            meshio::write_mesh(*mesh, out.path(), meshio::WriteOptions{ascii});
+          } catch (const OutputError& e) {
+            throw EngineError(proto::errc::kIoError, e.what());
+          }
+          ExportInfo info;
+          info.scan = scan.value_or(current);
+          info.path = out.shown().string();
+          info.format = lower_extension(p);
+          info.vertices = mesh->vertices.size();
+          info.triangles = mesh->triangles.size();
+          std::error_code ec;
+          info.bytes = std::filesystem::file_size(out.path(), ec);
+          return proto::to_object(info);
+        });
   });
   job("mesh.preview", true, [this](const proto::Request& r) {
     const auto path = r.args.get_string("path");
-    if (!path) throw proto::ProtocolError(proto::errc::kBadArgument, "'path' (the .png to write) is required");
+    if (!path)
+      throw proto::ProtocolError(proto::errc::kBadArgument,
+                                 "'path' (the .png to write) is required");
     if (lower_extension(*path) != "png")
-      throw proto::ProtocolError(proto::errc::kBadArgument, "'path' must end in .png, got '" + *path + "'");
+      throw proto::ProtocolError(proto::errc::kBadArgument,
+                                 "'path' must end in .png, got '" + *path + "'");
     const std::optional<std::int64_t> scan = r.args.get_int("scan");
     preview::RenderOptions options;
     const std::int64_t w = r.args.get_int("width_px").value_or(options.width_px);
     const std::int64_t h = r.args.get_int("height_px").value_or(options.height_px);
     if (w < 64 || w > 8192 || h < 64 || h > 8192)
-      throw proto::ProtocolError(proto::errc::kBadArgument, "'width_px' and 'height_px' must be in [64, 8192]");
+      throw proto::ProtocolError(proto::errc::kBadArgument,
+                                 "'width_px' and 'height_px' must be in [64, 8192]");
     options.width_px = static_cast<int>(w);
     options.height_px = static_cast<int>(h);
     const ScanStatus st = engine_.status();
@@ -360,7 +378,9 @@ Server::Server(asio::io_context& io, DaemonConfig config, ScanEngine& engine, co
       const ConfinedPath out = confine_output(p, dirs);
       const auto mesh = engine_.mesh(scan);
       if (!mesh || mesh->triangles.empty())
-        throw EngineError(proto::errc::kNoMesh, "no mesh yet for " + (scan ? "scan " + std::to_string(*scan) : std::string("the current scan")));
+        throw EngineError(proto::errc::kNoMesh,
+                          "no mesh yet for " + (scan ? "scan " + std::to_string(*scan)
+                                                     : std::string("the current scan")));
       std::string title;
       if (!scan || *scan == st.id) {
         title = st.name + " (scan " + std::to_string(st.id) + "): ";
@@ -412,7 +432,7 @@ void Server::listen(std::optional<int> activated_fd) {
     std::filesystem::create_directories(path.parent_path(), fs_ec);
     // A socket file left by a previous run (crash, SIGKILL) would make bind fail: remove it,
     // but never anything that is not a socket.
-    struct stat st{};
+    struct stat st {};
     if (::lstat(path.c_str(), &st) == 0) {
       if (!S_ISSOCK(st.st_mode))
         throw ConfigError(path.string() + ": exists and is not a socket; not replacing it");
@@ -498,10 +518,11 @@ void Server::accept() {
       auto line = std::make_shared<std::string>(proto::error_line(
           std::nullopt, proto::errc::kTooManyClients,
           "the daemon serves at most " + std::to_string(config_.max_clients) + " clients at once"));
-      asio::async_write(*s, asio::buffer(*line), [s, line](const boost::system::error_code&, std::size_t) {
-        boost::system::error_code e;
-        s->close(e);
-      });
+      asio::async_write(*s, asio::buffer(*line),
+                        [s, line](const boost::system::error_code&, std::size_t) {
+                          boost::system::error_code e;
+                          s->close(e);
+                        });
       accept();
       return;
     }
@@ -557,7 +578,8 @@ void Server::run_command(const std::shared_ptr<Session>& session, const proto::R
         body.set("watching", session->watching);
         session->send(proto::reply_line(request.id, request.cmd, body));
         // A baseline to apply later events to.
-        if (session->watching) session->send(proto::event_line("state", proto::to_object(engine_.status())));
+        if (session->watching)
+          session->send(proto::event_line("state", proto::to_object(engine_.status())));
         return;
       }
       session->send(proto::reply_line(request.id, request.cmd, body));
@@ -602,10 +624,12 @@ void Server::run_command(const std::shared_ptr<Session>& session, const proto::R
 proto::Object Server::cmd_scan_start(const proto::Request& r) {
   const auto name = r.args.get_string("name");
   if (!name || name->empty() || name->size() > 200)
-    throw proto::ProtocolError(proto::errc::kBadArgument, "'name' (1 to 200 characters) is required");
+    throw proto::ProtocolError(proto::errc::kBadArgument,
+                               "'name' (1 to 200 characters) is required");
   for (unsigned char c : *name)
     if (c < 0x20 || c == 0x7f)
-      throw proto::ProtocolError(proto::errc::kBadArgument, "'name' must not contain control characters");
+      throw proto::ProtocolError(proto::errc::kBadArgument,
+                                 "'name' must not contain control characters");
   Parameters merged = config_.scan_defaults;
   if (const auto p = r.args.get_parameters("parameters"))
     for (const auto& [k, v] : *p) merged[k] = v;
@@ -650,8 +674,8 @@ void Server::progress_tick() {
 void Server::on_scan(const ScanStatus& status) {
   if (status.state == ScanState::kIdle) paused_for_device_ = false;
   if (status.state != last_state_)
-    log_.info("scan " + std::to_string(status.id) + " '" + status.name + "': " +
-              std::string(to_string(status.state)) +
+    log_.info("scan " + std::to_string(status.id) + " '" + status.name +
+              "': " + std::string(to_string(status.state)) +
               (status.reason.empty() ? std::string() : " (" + status.reason + ")"));
   last_state_ = status.state;
   broadcast(proto::event_line("state", proto::to_object(status)), false);

@@ -40,7 +40,7 @@ struct ScanParams {
   SimBackendConfig sim;
   std::filesystem::path stream;  ///< replay source
   double playback = 1;
-  double cube_mm = 0;            ///< 0: auto
+  double cube_mm = 0;  ///< 0: auto
   std::uint64_t remesh_points = 20000;
 };
 
@@ -106,7 +106,8 @@ ScanParams parse_params(const DaemonConfig& config, const Parameters& p, bool re
         bad_param(key, "must be an absolute path to a mesh file the daemon can read");
     } else if (key == "sensor") {
       s.sim.sensor = string_param(key, v);
-      if (s.sim.sensor != "point" && s.sim.sensor != "line") bad_param(key, "must be point or line");
+      if (s.sim.sensor != "point" && s.sim.sensor != "line")
+        bad_param(key, "must be point or line");
     } else if (key == "path") {
       s.sim.path = string_param(key, v);
       if (s.sim.path != "raster" && s.sim.path != "serpentine" && s.sim.path != "rotary" &&
@@ -123,8 +124,9 @@ ScanParams parse_params(const DaemonConfig& config, const Parameters& p, bool re
     } else if (key == "seed") {
       s.sim.seed = static_cast<std::int64_t>(number_param(key, v, 0, 9e15));
     } else {
-      bad_param(key, "unknown parameter (part, mesh, sensor, path, spacing_mm, line_spacing_mm, "
-                     "speed_mm_s, noise_mm, seed, playback, cube_mm, remesh_points)");
+      bad_param(key,
+                "unknown parameter (part, mesh, sensor, path, spacing_mm, line_spacing_mm, "
+                "speed_mm_s, noise_mm, seed, playback, cube_mm, remesh_points)");
     }
   }
   return s;
@@ -177,10 +179,12 @@ sim::RecordedStream read_journal(const std::filesystem::path& file) {
   return sim::parse_stream(text, file.string(), {true});
 }
 
-std::vector<std::filesystem::path> journal_segments(const std::filesystem::path& dir, std::int64_t id) {
+std::vector<std::filesystem::path> journal_segments(const std::filesystem::path& dir,
+                                                    std::int64_t id) {
   std::vector<std::filesystem::path> out;
   for (int seg = 1;; ++seg) {
-    const auto p = dir / ("scan-" + std::to_string(id) + (seg == 1 ? "" : "." + std::to_string(seg)) + ".stream");
+    const auto p = dir / ("scan-" + std::to_string(id) +
+                          (seg == 1 ? "" : "." + std::to_string(seg)) + ".stream");
     std::error_code ec;
     if (!std::filesystem::exists(p, ec)) break;
     out.push_back(p);
@@ -218,7 +222,8 @@ std::size_t deliver(const Source& src, std::size_t& si, std::size_t& pi, sim::Ti
 /// Samples that are errors rather than misses (no target and over range are normal in a scan).
 std::uint64_t error_count(const acq::AccumulatorStats& st) {
   using S = drivers::SensorStatus;
-  return st.invalid[static_cast<std::size_t>(S::kOk)] + st.invalid[static_cast<std::size_t>(S::kAlarm)] +
+  return st.invalid[static_cast<std::size_t>(S::kOk)] +
+         st.invalid[static_cast<std::size_t>(S::kAlarm)] +
          st.invalid[static_cast<std::size_t>(S::kDeviceError)] + st.no_pose() + st.lost;
 }
 
@@ -275,10 +280,14 @@ std::optional<ScanRecord> read_record(const std::filesystem::path& file) {
     r.journal = t["journal"].value_or<std::string>("");
     if (const toml::table* p = t["parameters"].as_table()) {
       for (const auto& [k, v] : *p) {
-        if (auto b = v.value_exact<bool>()) r.parameters[std::string(k.str())] = *b;
-        else if (auto i = v.value_exact<std::int64_t>()) r.parameters[std::string(k.str())] = *i;
-        else if (auto d = v.value_exact<double>()) r.parameters[std::string(k.str())] = *d;
-        else if (auto s = v.value_exact<std::string>()) r.parameters[std::string(k.str())] = *s;
+        if (auto b = v.value_exact<bool>())
+          r.parameters[std::string(k.str())] = *b;
+        else if (auto i = v.value_exact<std::int64_t>())
+          r.parameters[std::string(k.str())] = *i;
+        else if (auto d = v.value_exact<double>())
+          r.parameters[std::string(k.str())] = *d;
+        else if (auto s = v.value_exact<std::string>())
+          r.parameters[std::string(k.str())] = *s;
       }
     }
     if (r.id <= 0) return std::nullopt;
@@ -291,7 +300,9 @@ std::optional<ScanRecord> read_record(const std::filesystem::path& file) {
 class PlaybackEngine final : public ScanEngine {
  public:
   PlaybackEngine(const DaemonConfig& config, const Log& log)
-      : config_(config), log_(log), replay_(config.backend == "replay"),
+      : config_(config),
+        log_(log),
+        replay_(config.backend == "replay"),
         scans_dir_(config.state_dir / "scans") {
     const std::string prefix = replay_ ? "replay-" : "sim-";
     const std::string port = replay_ ? config.replay.stream.string() : std::string();
@@ -309,7 +320,8 @@ class PlaybackEngine final : public ScanEngine {
     listener_ = &listener;
     std::error_code ec;
     std::filesystem::create_directories(scans_dir_, ec);
-    if (ec) throw ConfigError(scans_dir_.string() + ": cannot create the scan folder: " + ec.message());
+    if (ec)
+      throw ConfigError(scans_dir_.string() + ": cannot create the scan folder: " + ec.message());
     load_catalog();
     std::vector<DeviceInfo> opened;
     {
@@ -356,7 +368,8 @@ class PlaybackEngine final : public ScanEngine {
     {
       std::lock_guard lock(m_);
       if (status_.state != ScanState::kRunning)
-        throw EngineError(errc::kBadState, "no scan is running (state " + std::string(to_string(status_.state)) + ")");
+        throw EngineError(errc::kBadState, "no scan is running (state " +
+                                               std::string(to_string(status_.state)) + ")");
       active_s_ += std::chrono::duration<double>(Clock::now() - run_start_).count();
       status_.state = ScanState::kPaused;
       status_.reason = reason;
@@ -372,7 +385,8 @@ class PlaybackEngine final : public ScanEngine {
     {
       std::lock_guard lock(m_);
       if (status_.state != ScanState::kPaused)
-        throw EngineError(errc::kBadState, "no scan is paused (state " + std::string(to_string(status_.state)) + ")");
+        throw EngineError(errc::kBadState, "no scan is paused (state " +
+                                               std::string(to_string(status_.state)) + ")");
       run_start_ = Clock::now();
       status_.state = ScanState::kRunning;
       status_.reason.clear();
@@ -635,15 +649,17 @@ class PlaybackEngine final : public ScanEngine {
       if (status_.state == ScanState::kRunning) active_s_ = elapsed_locked();
       status_.elapsed_s = active_s_;
       status_.state = ScanState::kIdle;
-      status_.reason = r.state == "finished" ? "finished" : r.state + (r.reason.empty() ? "" : ": " + r.reason);
+      status_.reason =
+          r.state == "finished" ? "finished" : r.state + (r.reason.empty() ? "" : ": " + r.reason);
       final_status = status_;
     }
     if (listener_) listener_->on_scan(final_status);
   }
 
   void play(const ScanRecord& rec, const ScanParams& params, bool resumed) {
-    std::vector<std::pair<std::string, std::string>> info{
-        {"scan_id", std::to_string(rec.id)}, {"scan_name", rec.name}, {"started_utc", rec.started_utc}};
+    std::vector<std::pair<std::string, std::string>> info{{"scan_id", std::to_string(rec.id)},
+                                                          {"scan_name", rec.name},
+                                                          {"started_utc", rec.started_utc}};
     Source src;
     if (replay_) {
       sim::RecordedStream s = sim::read_stream(params.stream);
@@ -687,8 +703,9 @@ class PlaybackEngine final : public ScanEngine {
           const std::size_t k = recorded + i;
           if (k >= src.sensor.size() || src.sensor[k].seq != s.sensor[i].seq ||
               src.sensor[k].t_host != s.sensor[i].t_host)
-            throw EngineError(errc::kBadState, file.string() + ": the journal does not match its source (sample " +
-                                                   std::to_string(k) + ")");
+            throw EngineError(errc::kBadState,
+                              file.string() + ": the journal does not match its source (sample " +
+                                  std::to_string(k) + ")");
         }
         recorded += s.sensor.size();
         recorded_stage += s.stage.size();
@@ -701,14 +718,16 @@ class PlaybackEngine final : public ScanEngine {
       std::size_t rs = 0, rp = 0;
       const std::size_t stage_end = std::min<std::size_t>(recorded_stage, src.stage.size());
       const std::size_t sensor_end = std::min<std::size_t>(recorded, src.sensor.size());
-      deliver(src, rs, rp, sim::Timestamp{INT64_MAX}, SIZE_MAX,
-              [&](std::size_t k) {
-                if (k < stage_end) accumulator.add_stage(src.stage[k], mapped);
-              },
-              [&](std::size_t b, std::size_t e) {
-                if (e <= sensor_end)
-                  accumulator.add_sensor_samples(device, std::span(src.sensor).subspan(b, e - b), mapped);
-              });
+      deliver(
+          src, rs, rp, sim::Timestamp{INT64_MAX}, SIZE_MAX,
+          [&](std::size_t k) {
+            if (k < stage_end) accumulator.add_stage(src.stage[k], mapped);
+          },
+          [&](std::size_t b, std::size_t e) {
+            if (e <= sensor_end)
+              accumulator.add_sensor_samples(device, std::span(src.sensor).subspan(b, e - b),
+                                             mapped);
+          });
       si = sensor_end;
       pi = stage_end;
       to_live(live.points, live.towards);
@@ -718,7 +737,8 @@ class PlaybackEngine final : public ScanEngine {
       status_.counters.journal_bytes = journal_before;
     }
     const auto journal_path =
-        scans_dir_ / ("scan-" + std::to_string(rec.id) + (segment == 1 ? "" : "." + std::to_string(segment)) + ".stream");
+        scans_dir_ / ("scan-" + std::to_string(rec.id) +
+                      (segment == 1 ? "" : "." + std::to_string(segment)) + ".stream");
     std::ofstream out(journal_path, std::ios::binary | std::ios::trunc);
     if (!out) throw OutputError(journal_path.string() + ": cannot create the journal");
     sim::StreamHeader header = src.header;
@@ -740,8 +760,9 @@ class PlaybackEngine final : public ScanEngine {
       }
     } join_mesher{mesher, *this, live};
 
-    const sim::Timestamp t0 = std::min(si < src.sensor.size() ? src.sensor[si].t_host : sim::Timestamp{INT64_MAX},
-                                       pi < src.stage.size() ? src.stage[pi].t : sim::Timestamp{INT64_MAX});
+    const sim::Timestamp t0 =
+        std::min(si < src.sensor.size() ? src.sensor[si].t_host : sim::Timestamp{INT64_MAX},
+                 pi < src.stage.size() ? src.stage[pi].t : sim::Timestamp{INT64_MAX});
     std::deque<std::pair<Clock::time_point, std::uint64_t>> window;  // rate over the last second
     std::vector<recon::Vec3> new_points, new_towards;
     constexpr std::size_t kChunk = 20000;  // samples per step when playing as fast as possible
@@ -756,9 +777,9 @@ class PlaybackEngine final : public ScanEngine {
       }
       // Deliver everything due, stage and sensor merged by time: journal first, then mapping.
       const bool unpaced = params.playback <= 0;
-      const sim::Timestamp due =
-          unpaced ? sim::Timestamp{INT64_MAX}
-                  : t0 + std::chrono::nanoseconds(static_cast<std::int64_t>(active * params.playback * 1e9));
+      const sim::Timestamp due = unpaced ? sim::Timestamp{INT64_MAX}
+                                         : t0 + std::chrono::nanoseconds(static_cast<std::int64_t>(
+                                                    active * params.playback * 1e9));
       const std::size_t delivered = deliver(
           src, si, pi, due, unpaced ? kChunk : SIZE_MAX,
           [&](std::size_t k) {
@@ -789,15 +810,20 @@ class PlaybackEngine final : public ScanEngine {
         c.journal_bytes = journal_before + static_cast<std::uint64_t>(out.tellp());
         c.errors = error_count(accumulator.stats());
         window.emplace_back(now, c.samples);
-        while (window.size() > 2 && now - window.front().first > std::chrono::seconds(1)) window.pop_front();
+        while (window.size() > 2 && now - window.front().first > std::chrono::seconds(1))
+          window.pop_front();
         const double dt = std::chrono::duration<double>(now - window.front().first).count();
         c.rate_hz = dt > 0 ? static_cast<double>(c.samples - window.front().second) / dt : 0;
         c.meshing_lag_points = c.points - live.meshed;
-        const double points_per_sample = c.samples > 0 ? static_cast<double>(c.points) / static_cast<double>(c.samples) : 0;
-        c.meshing_lag_s = c.rate_hz * points_per_sample > 0
-                              ? static_cast<double>(c.meshing_lag_points) / (c.rate_hz * points_per_sample)
-                              : 0;
-        status_.progress = src.sensor.empty() ? 1.0 : static_cast<double>(si) / static_cast<double>(src.sensor.size());
+        const double points_per_sample =
+            c.samples > 0 ? static_cast<double>(c.points) / static_cast<double>(c.samples) : 0;
+        c.meshing_lag_s =
+            c.rate_hz * points_per_sample > 0
+                ? static_cast<double>(c.meshing_lag_points) / (c.rate_hz * points_per_sample)
+                : 0;
+        status_.progress = src.sensor.empty()
+                               ? 1.0
+                               : static_cast<double>(si) / static_cast<double>(src.sensor.size());
         devices_[0].samples += delivered;
         devices_[1].samples = pi;
         want_mesh = live.points.size() - live.meshed >= params.remesh_points;

@@ -31,16 +31,14 @@ void Notifier::send(std::string_view text) const {
   ::sd_notify(0, s.c_str());
 }
 
-void Notifier::ready(std::string_view status) const {
-  send("READY=1\nSTATUS=" + one_line(status));
-}
+void Notifier::ready(std::string_view status) const { send("READY=1\nSTATUS=" + one_line(status)); }
 
 void Notifier::reloading() const {
   // systemd 253+ wants MONOTONIC_USEC with RELOADING=1 (Type=notify-reload); older ones ignore it.
   timespec ts{};
   ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  const std::uint64_t usec =
-      static_cast<std::uint64_t>(ts.tv_sec) * 1000000u + static_cast<std::uint64_t>(ts.tv_nsec) / 1000u;
+  const std::uint64_t usec = static_cast<std::uint64_t>(ts.tv_sec) * 1000000u +
+                             static_cast<std::uint64_t>(ts.tv_nsec) / 1000u;
   send("RELOADING=1\nMONOTONIC_USEC=" + std::to_string(usec));
 }
 
@@ -54,14 +52,14 @@ void Notifier::watchdog() const { send("WATCHDOG=1"); }
 
 std::optional<std::chrono::microseconds> watchdog_interval() {
   std::uint64_t usec = 0;
-  if (::sd_watchdog_enabled(0, &usec) > 0 && usec > 0)
-    return std::chrono::microseconds(usec);
+  if (::sd_watchdog_enabled(0, &usec) > 0 && usec > 0) return std::chrono::microseconds(usec);
   return std::nullopt;
 }
 
 std::optional<int> take_activated_socket(const std::filesystem::path& path, const Log& log) {
   const int n = ::sd_listen_fds(1);
-  if (n < 0) throw ConfigError(std::string("socket activation: sd_listen_fds failed: ") + std::strerror(-n));
+  if (n < 0)
+    throw ConfigError(std::string("socket activation: sd_listen_fds failed: ") + std::strerror(-n));
   if (n == 0) return std::nullopt;
   std::optional<int> chosen;
   for (int fd = SD_LISTEN_FDS_START; fd < SD_LISTEN_FDS_START + n; ++fd) {

@@ -26,10 +26,10 @@ using scanmesh::daemon::ScanState;
 namespace proto = scanmesh::daemon::proto;
 
 constexpr int kExitOk = 0;
-constexpr int kExitError = 1;      ///< the daemon answered ERROR
+constexpr int kExitError = 1;  ///< the daemon answered ERROR
 constexpr int kExitUsage = 2;
-constexpr int kExitConnect = 3;    ///< no daemon, or the connection broke
-constexpr int kExitScanFailed = 4; ///< --wait: the scan ended without finishing
+constexpr int kExitConnect = 3;     ///< no daemon, or the connection broke
+constexpr int kExitScanFailed = 4;  ///< --wait: the scan ended without finishing
 
 struct Options {
   std::string socket = "/run/scanmesh/control.sock";
@@ -50,9 +50,12 @@ std::string thousands(std::uint64_t v) {
 
 std::string rate_text(double hz) {
   char buf[32];
-  if (hz >= 1e6) std::snprintf(buf, sizeof buf, "%.2f MHz", hz / 1e6);
-  else if (hz >= 1e3) std::snprintf(buf, sizeof buf, "%.1f kHz", hz / 1e3);
-  else std::snprintf(buf, sizeof buf, "%.0f Hz", hz);
+  if (hz >= 1e6)
+    std::snprintf(buf, sizeof buf, "%.2f MHz", hz / 1e6);
+  else if (hz >= 1e3)
+    std::snprintf(buf, sizeof buf, "%.1f kHz", hz / 1e3);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f Hz", hz);
   return buf;
 }
 
@@ -100,11 +103,13 @@ void print_status(const proto::Message& m) {
               static_cast<long long>(sc.id), sc.name.c_str(),
               sc.reason.empty() ? "" : (" (" + sc.reason + ")").c_str());
   const auto& c = sc.counters;
-  if (sc.progress >= 0) std::printf("progress   %.0f %%, %.1f s\n", sc.progress * 100, sc.elapsed_s);
+  if (sc.progress >= 0)
+    std::printf("progress   %.0f %%, %.1f s\n", sc.progress * 100, sc.elapsed_s);
   std::printf("samples    %s (%s)\n", thousands(c.samples).c_str(), rate_text(c.rate_hz).c_str());
   std::printf("points     %s\n", thousands(c.points).c_str());
   std::printf("triangles  %s\n", thousands(c.triangles).c_str());
-  std::printf("lag        %s points (%.2f s)\n", thousands(c.meshing_lag_points).c_str(), c.meshing_lag_s);
+  std::printf("lag        %s points (%.2f s)\n", thousands(c.meshing_lag_points).c_str(),
+              c.meshing_lag_s);
   std::printf("journal    %s bytes\n", thousands(c.journal_bytes).c_str());
   std::printf("errors     %s\n", thousands(c.errors).c_str());
 }
@@ -120,9 +125,9 @@ void print_event(const proto::Message& m) {
   if (m.event == "state" || m.event == "progress") {
     const auto s = proto::scan_status_from(m.body);
     std::printf("%-8s %s scan %lld '%s' %s samples %s points %s triangles%s\n", m.event.c_str(),
-                std::string(to_string(s.state)).c_str(), static_cast<long long>(s.id), s.name.c_str(),
-                thousands(s.counters.samples).c_str(), thousands(s.counters.points).c_str(),
-                thousands(s.counters.triangles).c_str(),
+                std::string(to_string(s.state)).c_str(), static_cast<long long>(s.id),
+                s.name.c_str(), thousands(s.counters.samples).c_str(),
+                thousands(s.counters.points).c_str(), thousands(s.counters.triangles).c_str(),
                 s.reason.empty() ? "" : (" (" + s.reason + ")").c_str());
   } else if (m.event == "device") {
     const auto d = proto::device_info_from(m.body);
@@ -132,7 +137,8 @@ void print_event(const proto::Message& m) {
     const auto c = proto::mesh_counts_from(m.body);
     std::printf("mesh     scan %lld: %s triangles, %s vertices (+%s -%s)\n",
                 static_cast<long long>(c.scan), thousands(c.triangles).c_str(),
-                thousands(c.vertices).c_str(), thousands(c.added).c_str(), thousands(c.removed).c_str());
+                thousands(c.vertices).c_str(), thousands(c.added).c_str(),
+                thousands(c.removed).c_str());
   } else {
     std::printf("%s\n", m.body.dump().c_str());
   }
@@ -152,12 +158,12 @@ class ProgressBar {
     const double f = s.progress < 0 ? 0 : std::min(1.0, s.progress);
     const int filled = static_cast<int>(f * kWidth);
     const auto& c = s.counters;
-    std::fprintf(stderr, "%s[%s%s] %3.0f%%  samples %s  points %s  triangles %s  rate %s  lag %.1f s%s",
-                 tty_ ? "\r" : "", std::string(static_cast<std::size_t>(filled), '#').c_str(),
-                 std::string(static_cast<std::size_t>(kWidth - filled), '.').c_str(), f * 100,
-                 thousands(c.samples).c_str(), thousands(c.points).c_str(),
-                 thousands(c.triangles).c_str(), rate_text(c.rate_hz).c_str(), c.meshing_lag_s,
-                 tty_ ? "\033[K" : "\n");
+    std::fprintf(
+        stderr, "%s[%s%s] %3.0f%%  samples %s  points %s  triangles %s  rate %s  lag %.1f s%s",
+        tty_ ? "\r" : "", std::string(static_cast<std::size_t>(filled), '#').c_str(),
+        std::string(static_cast<std::size_t>(kWidth - filled), '.').c_str(), f * 100,
+        thousands(c.samples).c_str(), thousands(c.points).c_str(), thousands(c.triangles).c_str(),
+        rate_text(c.rate_hz).c_str(), c.meshing_lag_s, tty_ ? "\033[K" : "\n");
     std::fflush(stderr);
     shown_ = true;
   }
@@ -226,7 +232,9 @@ int simple(Client& client, const std::string& cmd, const proto::Object& args, co
   return kExitOk;
 }
 
-std::string absolute(const std::string& p) { return std::filesystem::absolute(p).lexically_normal().string(); }
+std::string absolute(const std::string& p) {
+  return std::filesystem::absolute(p).lexically_normal().string();
+}
 
 }  // namespace
 
@@ -313,7 +321,8 @@ int main(int argc, char** argv) {
         const proto::Message w = c.request("watch", proto::Object().set("enable", true), &raw);
         if (w.cls == proto::MessageClass::kError) return report_error(w, raw, o);
       }
-      const proto::Message m = c.request("scan.start", proto::Object().set("name", name).set("parameters", p), &raw);
+      const proto::Message m =
+          c.request("scan.start", proto::Object().set("name", name).set("parameters", p), &raw);
       if (m.cls == proto::MessageClass::kError) return report_error(m, raw, o);
       const auto rec = proto::scan_record_from(m.body.get_object("scan").value_or(proto::Fields()));
       if (o.json)
@@ -324,14 +333,16 @@ int main(int argc, char** argv) {
       return wait ? wait_for_scan(c, rec.id, o) : kExitOk;
     };
   });
-  for (const auto& [sub, cmd, help] : std::vector<std::tuple<std::string, std::string, std::string>>{
+  for (const auto& [sub, cmd, help] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{
            {"pause", "scan.pause", "pause the running scan"},
            {"resume", "scan.resume", "resume the paused scan"},
            {"stop", "scan.stop", "stop the running scan (its journal and mesh are kept)"}}) {
     scan->add_subcommand(sub, help)->callback([&, cmd = cmd] {
       body = [&, cmd](Client& c) {
         return simple(c, cmd, {}, o, [](const proto::Message& m) {
-          const auto s = proto::scan_status_from(m.body.get_object("scan").value_or(proto::Fields()));
+          const auto s =
+              proto::scan_status_from(m.body.get_object("scan").value_or(proto::Fields()));
           std::printf("scan %lld '%s': %s\n", static_cast<long long>(s.id), s.name.c_str(),
                       std::string(to_string(s.state)).c_str());
         });
@@ -348,7 +359,8 @@ int main(int argc, char** argv) {
     };
   });
   std::int64_t scan_id = 0;
-  for (const auto& [sub, cmd, help] : std::vector<std::tuple<std::string, std::string, std::string>>{
+  for (const auto& [sub, cmd, help] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{
            {"info", "scan.info", "one scan of the catalog"},
            {"resume-interrupted", "scan.resume_interrupted", "continue a scan a crash interrupted"},
            {"close-interrupted", "scan.close_interrupted", "close a scan a crash interrupted"}}) {
@@ -357,10 +369,12 @@ int main(int argc, char** argv) {
     s->callback([&, cmd = cmd] {
       body = [&, cmd](Client& c) {
         return simple(c, cmd, proto::Object().set("scan", scan_id), o, [](const proto::Message& m) {
-          const auto r = proto::scan_record_from(m.body.get_object("scan").value_or(proto::Fields()));
+          const auto r =
+              proto::scan_record_from(m.body.get_object("scan").value_or(proto::Fields()));
           print_record(r);
           if (!r.reason.empty()) std::printf("       %s\n", r.reason.c_str());
-          std::printf("       journal %s (%s bytes)\n", r.journal.c_str(), thousands(r.journal_bytes).c_str());
+          std::printf("       journal %s (%s bytes)\n", r.journal.c_str(),
+                      thousands(r.journal_bytes).c_str());
         });
       };
     });
@@ -384,13 +398,15 @@ int main(int argc, char** argv) {
       if (ascii) args.set("ascii", true);
       return simple(c, "mesh.export", args, o, [](const proto::Message& m) {
         const auto e = proto::export_info_from(m.body);
-        std::printf("wrote %s (%s, scan %lld: %s triangles, %s vertices, %s bytes)\n", e.path.c_str(),
-                    e.format.c_str(), static_cast<long long>(e.scan), thousands(e.triangles).c_str(),
-                    thousands(e.vertices).c_str(), thousands(e.bytes).c_str());
+        std::printf("wrote %s (%s, scan %lld: %s triangles, %s vertices, %s bytes)\n",
+                    e.path.c_str(), e.format.c_str(), static_cast<long long>(e.scan),
+                    thousands(e.triangles).c_str(), thousands(e.vertices).c_str(),
+                    thousands(e.bytes).c_str());
       });
     };
   });
-  auto* prev = mesh->add_subcommand("preview", "render a shaded PNG of the mesh with the scan's progress");
+  auto* prev =
+      mesh->add_subcommand("preview", "render a shaded PNG of the mesh with the scan's progress");
   prev->add_option("--path", path, "PNG file to write")->required();
   prev->add_option("--scan", mesh_scan, "a past scan's id (default: the current or last scan)");
   prev->add_option("--width", width, "pixels")->capture_default_str();

@@ -52,7 +52,8 @@ int main(int argc, char** argv) {
   app.add_option("--state-dir", overrides.state_dir,
                  "folder for journals and the scan catalog (overrides daemon.state_dir)");
   bool foreground = true;
-  app.add_flag("--foreground", foreground, "run in the foreground (always: systemd supervises the process)");
+  app.add_flag("--foreground", foreground,
+               "run in the foreground (always: systemd supervises the process)");
   app.add_flag("--check-config", check_only, "validate the configuration, print it and exit");
   app.add_flag("--version", version, "print the version and exit");
   try {
@@ -87,7 +88,8 @@ int main(int argc, char** argv) {
     log.error(std::string("cannot build the backend: ") + e.what());
     return 1;
   }
-  scanmesh::daemon::Daemon daemon(config, *engine, log, SCANMESH_VERSION,
-                                  [config_file, overrides] { return load(config_file, overrides); });
+  scanmesh::daemon::Daemon daemon(config, *engine, log, SCANMESH_VERSION, [config_file, overrides] {
+    return load(config_file, overrides);
+  });
   return daemon.run();
 }

@@ -53,10 +53,12 @@ class NotifySocket {
     return m;
   }
   /// Reads datagrams until one contains `needle`; false after `timeout` without it.
-  bool await(const std::string& needle, std::chrono::milliseconds timeout = std::chrono::seconds(30)) {
+  bool await(const std::string& needle,
+             std::chrono::milliseconds timeout = std::chrono::seconds(30)) {
     const auto end = std::chrono::steady_clock::now() + timeout;
     for (;;) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now());
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          end - std::chrono::steady_clock::now());
       if (left.count() <= 0) return false;
       auto m = next(left);
       if (!m) return false;
@@ -75,7 +77,8 @@ class NotifySocket {
 class ChildProcess {
  public:
   ChildProcess(const std::vector<std::string>& args, const std::map<std::string, std::string>& env,
-               const std::filesystem::path& log_file) : log_(log_file) {
+               const std::filesystem::path& log_file)
+      : log_(log_file) {
     std::vector<std::string> a = args;
     std::vector<char*> argv;
     for (auto& s : a) argv.push_back(s.data());

@@ -32,16 +32,22 @@ inline daemon::DaemonConfig harness_config(const TempDir& dir) {
 
 class DaemonHarness {
  public:
-  explicit DaemonHarness(std::function<void(daemon::DaemonConfig&)> adjust = {}) : config_(harness_config(dir_)) {
+  explicit DaemonHarness(std::function<void(daemon::DaemonConfig&)> adjust = {})
+      : config_(harness_config(dir_)) {
     if (adjust) adjust(config_);
-    log_fd_ = ::open((dir_ / "daemon.log").c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    log_fd_ =
+        ::open((dir_ / "daemon.log").c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     log_ = std::make_unique<daemon::Log>(config_.log_level, log_fd_);
-    daemon_ = std::make_unique<daemon::Daemon>(config_, engine_, *log_, "test", [this] { return config_; });
+    daemon_ = std::make_unique<daemon::Daemon>(config_, engine_, *log_, "test",
+                                               [this] { return config_; });
     thread_ = std::thread([this] { status_ = daemon_->run(); });
     if (!eventually([this] { return std::filesystem::exists(config_.socket_path); }))
       throw std::runtime_error("the daemon did not start: " + log());
   }
-  ~DaemonHarness() { stop(); ::close(log_fd_); }
+  ~DaemonHarness() {
+    stop();
+    ::close(log_fd_);
+  }
 
   int stop() {
     if (thread_.joinable()) {
@@ -55,7 +61,9 @@ class DaemonHarness {
   const TempDir& dir() const { return dir_; }
   std::filesystem::path socket() const { return config_.socket_path; }
   std::string log() const { return slurp(dir_ / "daemon.log"); }
-  std::unique_ptr<daemon::Client> client() { return std::make_unique<daemon::Client>(socket(), std::chrono::seconds(10)); }
+  std::unique_ptr<daemon::Client> client() {
+    return std::make_unique<daemon::Client>(socket(), std::chrono::seconds(10));
+  }
 
  private:
   TempDir dir_;

@@ -17,8 +17,10 @@ namespace scanmesh::test {
 class ScriptedEngine final : public daemon::ScanEngine {
  public:
   ScriptedEngine() {
-    devices_.push_back({"probe-sensor", "sensor", "scripted", "/dev/null", daemon::DeviceState::kClosed, "", 0, 0});
-    devices_.push_back({"probe-stage", "stage", "scripted", "", daemon::DeviceState::kClosed, "", 0, 0});
+    devices_.push_back({"probe-sensor", "sensor", "scripted", "/dev/null",
+                        daemon::DeviceState::kClosed, "", 0, 0});
+    devices_.push_back(
+        {"probe-stage", "stage", "scripted", "", daemon::DeviceState::kClosed, "", 0, 0});
   }
 
   std::string_view backend() const override { return "scripted"; }
@@ -43,7 +45,8 @@ class ScriptedEngine final : public daemon::ScanEngine {
     if (status_.state != daemon::ScanState::kIdle)
       throw daemon::EngineError(daemon::proto::errc::kBusy, "a scan is running");
     if (parameters.count("bogus"))
-      throw daemon::EngineError(daemon::proto::errc::kBadArgument, "parameters.bogus: unknown parameter");
+      throw daemon::EngineError(daemon::proto::errc::kBadArgument,
+                                "parameters.bogus: unknown parameter");
     daemon::ScanRecord r;
     r.id = next_id_++;
     r.name = name;
@@ -95,10 +98,12 @@ class ScriptedEngine final : public daemon::ScanEngine {
     return it->second;
   }
   daemon::ScanRecord resume_interrupted(std::int64_t id) override {
-    throw daemon::EngineError(daemon::proto::errc::kNotFound, "no interrupted scan " + std::to_string(id));
+    throw daemon::EngineError(daemon::proto::errc::kNotFound,
+                              "no interrupted scan " + std::to_string(id));
   }
   daemon::ScanRecord close_interrupted(std::int64_t id) override {
-    throw daemon::EngineError(daemon::proto::errc::kNotFound, "no interrupted scan " + std::to_string(id));
+    throw daemon::EngineError(daemon::proto::errc::kNotFound,
+                              "no interrupted scan " + std::to_string(id));
   }
   std::shared_ptr<const recon::Mesh> mesh(std::optional<std::int64_t> scan) const override {
     std::lock_guard lock(m_);
@@ -135,7 +140,8 @@ class ScriptedEngine final : public daemon::ScanEngine {
     mesh_ = std::make_shared<const recon::Mesh>(sim::make_part("container"));
     status_.counters.triangles = mesh_->triangles.size();
     status_.counters.vertices = mesh_->vertices.size();
-    listener_->on_mesh({status_.id, mesh_->vertices.size(), mesh_->triangles.size(), mesh_->triangles.size(), 0});
+    listener_->on_mesh(
+        {status_.id, mesh_->vertices.size(), mesh_->triangles.size(), mesh_->triangles.size(), 0});
     finish_locked("finished");
   }
   /// Many events at once (slow-client tests): device reports with a long detail.

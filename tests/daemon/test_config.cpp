@@ -12,7 +12,8 @@ using namespace scanmesh;
 using namespace scanmesh::daemon;
 
 namespace {
-std::string error_of(std::string_view text, const std::filesystem::path& source = "/etc/scanmesh/x.toml") {
+std::string error_of(std::string_view text,
+                     const std::filesystem::path& source = "/etc/scanmesh/x.toml") {
   try {
     parse_config(text, source);
   } catch (const ConfigError& e) {
@@ -82,10 +83,12 @@ x = 1
            "/etc/scanmesh/x.toml: daemon.progress_interval_ms: must be in [10, 60000], got 5",
            "/etc/scanmesh/x.toml: daemon.control_users: no such user 'no-such-user-xyz'",
            "/etc/scanmesh/x.toml: daemon.socket_group: no such group 'no-such-group-xyz'",
-           "/etc/scanmesh/x.toml: daemon.log_level: must be one of error, warning, notice, info, debug, got 'loud'",
+           "/etc/scanmesh/x.toml: daemon.log_level: must be one of error, warning, notice, info, "
+           "debug, got 'loud'",
            "/etc/scanmesh/x.toml: daemon.typo_key: unknown key",
            "/etc/scanmesh/x.toml: backend.kind: must be one of sim, replay, devices, got 'magic'",
-           "/etc/scanmesh/x.toml: sim.part: unknown part 'teapot' (built-in parts: container, sphere, cylinder, steps)",
+           "/etc/scanmesh/x.toml: sim.part: unknown part 'teapot' (built-in parts: container, "
+           "sphere, cylinder, steps)",
            "/etc/scanmesh/x.toml: sim.sensor: must be one of point, line, got 'sonar'",
            "/etc/scanmesh/x.toml: sim.spacing_mm: must be in [0.001, 50], got -1",
            "/etc/scanmesh/x.toml: colour: unknown table",
@@ -101,14 +104,16 @@ TEST_CASE("TOML syntax errors name the file, line and column", "[daemon][config]
 TEST_CASE("the replay and devices backends check their files before anything opens",
           "[daemon][config]") {
   test::TempDir dir;
-  const std::string replay = error_of("[backend]\nkind = \"replay\"\n[replay]\nstream = \"gone.stream\"\n",
-                                      dir / "d.toml");
-  CHECK_THAT(replay, Catch::Contains("replay.stream: cannot read '" + (dir / "gone.stream").string() +
-                                     "': no such file"));
-  CHECK_THAT(error_of("[backend]\nkind = \"replay\"\n"), Catch::Contains("replay.stream: is required"));
+  const std::string replay = error_of(
+      "[backend]\nkind = \"replay\"\n[replay]\nstream = \"gone.stream\"\n", dir / "d.toml");
+  CHECK_THAT(replay, Catch::Contains("replay.stream: cannot read '" +
+                                     (dir / "gone.stream").string() + "': no such file"));
+  CHECK_THAT(error_of("[backend]\nkind = \"replay\"\n"),
+             Catch::Contains("replay.stream: is required"));
   test::spit(dir / "lkg.toml", "[sensor]\ndriver = \"no-such-driver\"\nbaud = 3\n");
   const std::string devices = error_of(
-      "[backend]\nkind = \"devices\"\n[[devices]]\nrole = \"sensor\"\nconfig = \"lkg.toml\"\n", dir / "d.toml");
+      "[backend]\nkind = \"devices\"\n[[devices]]\nrole = \"sensor\"\nconfig = \"lkg.toml\"\n",
+      dir / "d.toml");
   INFO(devices);
   // The sensor file's own problems, each under the entry that names it.
   CHECK_THAT(devices, Catch::Contains("d.toml: devices[0].config: "));

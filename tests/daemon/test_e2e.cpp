@@ -44,13 +44,14 @@ struct Daemon {
              std::vector<std::string> prefix = {}) {
     env["NOTIFY_SOCKET"] = notify.path().string();
     std::vector<std::string> args = prefix;
-    for (const std::string& a : {std::string(SCANMESHD_EXE), std::string("--config"), config,
-                                 std::string("--socket"), socket.string(), std::string("--state-dir"),
-                                 state.string(), std::string("--foreground")})
+    for (const std::string& a :
+         {std::string(SCANMESHD_EXE), std::string("--config"), config, std::string("--socket"),
+          socket.string(), std::string("--state-dir"), state.string(), std::string("--foreground")})
       args.push_back(a);
     process = std::make_unique<ChildProcess>(args, env, dir / "daemon.log");
   }
-  void start_ready(const std::string& config = kSimConfig, std::map<std::string, std::string> env = {}) {
+  void start_ready(const std::string& config = kSimConfig,
+                   std::map<std::string, std::string> env = {}) {
     start(config, std::move(env));
     INFO(log());
     REQUIRE(notify.await("READY=1"));
@@ -61,8 +62,8 @@ struct Daemon {
 
 /// Masks what varies between runs: times, rates, the temporary folder, the version.
 nlohmann::ordered_json mask(nlohmann::ordered_json j, const std::string& tmp) {
-  static const std::set<std::string> kVolatile = {"uptime_s", "elapsed_s", "rate_hz", "meshing_lag_s",
-                                                  "started_utc", "stopped_utc", "daemon"};
+  static const std::set<std::string> kVolatile = {
+      "uptime_s", "elapsed_s", "rate_hz", "meshing_lag_s", "started_utc", "stopped_utc", "daemon"};
   if (j.is_object()) {
     for (auto& [k, v] : j.items()) {
       if (kVolatile.count(k) && !v.is_object())
@@ -74,7 +75,8 @@ nlohmann::ordered_json mask(nlohmann::ordered_json j, const std::string& tmp) {
     for (auto& v : j) v = mask(v, tmp);
   } else if (j.is_string()) {
     std::string s = j.get<std::string>();
-    for (std::size_t at; (at = s.find(tmp)) != std::string::npos;) s.replace(at, tmp.size(), "$TMP");
+    for (std::size_t at; (at = s.find(tmp)) != std::string::npos;)
+      s.replace(at, tmp.size(), "$TMP");
     j = s;
   }
   return j;
@@ -113,8 +115,9 @@ ScanStatus wait_scan_end(Client& c, std::int64_t id) {
 
 }  // namespace
 
-TEST_CASE("a simulated scan through scanmeshd: READY, a golden transcript, an exact mesh, a clean stop",
-          "[e2e]") {
+TEST_CASE(
+    "a simulated scan through scanmeshd: READY, a golden transcript, an exact mesh, a clean stop",
+    "[e2e]") {
   Daemon d;
   d.start_ready();
   const std::string tmp = d.dir.path().string();
@@ -124,7 +127,8 @@ TEST_CASE("a simulated scan through scanmeshd: READY, a golden transcript, an ex
   auto exchange = [&](const std::string& cmd, const proto::Object& args = {}) {
     std::string raw;
     proto::Message m = c.request(cmd, args, &raw);
-    transcript.push_back(mask(nlohmann::ordered_json::parse(proto::request_line(cmd, *m.id, args)), tmp).dump());
+    transcript.push_back(
+        mask(nlohmann::ordered_json::parse(proto::request_line(cmd, *m.id, args)), tmp).dump());
     transcript.push_back(mask(nlohmann::ordered_json::parse(raw), tmp).dump());
     return m;
   };
@@ -132,11 +136,15 @@ TEST_CASE("a simulated scan through scanmeshd: READY, a golden transcript, an ex
   exchange("devices");
   exchange("status");
   exchange("watch", proto::Object().set("enable", true));
-  const proto::Message started = exchange(
-      "scan.start", proto::Object().set("name", "e2e").set("parameters", Parameters{{"playback", std::int64_t{0}}}));
+  const proto::Message started =
+      exchange("scan.start", proto::Object()
+                                 .set("name", "e2e")
+                                 .set("parameters", Parameters{{"playback", std::int64_t{0}}}));
   const std::int64_t id = proto::scan_record_from(*started.body.get_object("scan")).id;
   const ScanStatus end = wait_scan_end(c, id);
-  transcript.push_back(mask(nlohmann::ordered_json::parse(proto::event_line("state", proto::to_object(end))), tmp).dump());
+  transcript.push_back(
+      mask(nlohmann::ordered_json::parse(proto::event_line("state", proto::to_object(end))), tmp)
+          .dump());
   CHECK(end.reason == "finished");
   CHECK(end.counters.samples == kSimSamples);
   exchange("watch", proto::Object().set("enable", false));
@@ -144,7 +152,8 @@ TEST_CASE("a simulated scan through scanmeshd: READY, a golden transcript, an ex
   exchange("scan.list");
   exchange("scan.info", proto::Object().set("scan", id));
   const auto stl = d.state / "exports" / "e2e.stl";
-  const proto::Message exported = exchange("mesh.export", proto::Object().set("path", stl.string()));
+  const proto::Message exported =
+      exchange("mesh.export", proto::Object().set("path", stl.string()));
   exchange("mesh.preview", proto::Object().set("path", (d.state / "exports" / "e2e.png").string()));
   exchange("mesh.export", proto::Object().set("path", (d.dir / "outside.stl").string()));
   exchange("scan.pause");
@@ -180,15 +189,20 @@ TEST_CASE("a simulated scan through scanmeshd: READY, a golden transcript, an ex
   CHECK_THAT(d.log(), Catch::Contains("<5>received SIGTERM: shutting down"));
 }
 
-TEST_CASE("SIGTERM during a scan stops it cleanly: the journal is complete and the catalog says stopped",
-          "[e2e]") {
+TEST_CASE(
+    "SIGTERM during a scan stops it cleanly: the journal is complete and the catalog says stopped",
+    "[e2e]") {
   Daemon d;
   d.start_ready();
   Client c = d.client();
   c.request("watch");
-  const proto::Message m = c.request("scan.start", proto::Object().set("name", "cut").set("parameters", Parameters{{"playback", std::int64_t{1}}}));
+  const proto::Message m =
+      c.request("scan.start", proto::Object()
+                                  .set("name", "cut")
+                                  .set("parameters", Parameters{{"playback", std::int64_t{1}}}));
   REQUIRE(m.cls == proto::MessageClass::kReply);
-  REQUIRE(test::eventually([&] { return proto::status_info_from(c.request("status").body).scan.counters.samples > 0; }));
+  REQUIRE(test::eventually(
+      [&] { return proto::status_info_from(c.request("status").body).scan.counters.samples > 0; }));
   d.process->signal(SIGTERM);
   CHECK(d.process->wait() == 0);
   // The journal ends with its end record (complete), the record says stopped.
@@ -197,10 +211,12 @@ TEST_CASE("SIGTERM during a scan stops it cleanly: the journal is complete and t
   CHECK_THAT(test::slurp(d.state / "scans/scan-1.toml"), Catch::Contains("state = 'stopped'"));
 }
 
-TEST_CASE("socket activation: scanmeshd adopts the socket systemd-socket-activate passes", "[e2e][systemd]") {
+TEST_CASE("socket activation: scanmeshd adopts the socket systemd-socket-activate passes",
+          "[e2e][systemd]") {
   Daemon d;
-  d.start(kSimConfig, {}, {"/usr/bin/systemd-socket-activate", "-l", d.socket.string(), "-E",
-                           "NOTIFY_SOCKET=" + d.notify.path().string()});
+  d.start(kSimConfig, {},
+          {"/usr/bin/systemd-socket-activate", "-l", d.socket.string(), "-E",
+           "NOTIFY_SOCKET=" + d.notify.path().string()});
   // As under systemd, the first connection starts the daemon: the client connects before it runs
   // and gets its HELLO once it has adopted the socket.
   // (The socket file appears at bind, before listen: connecting is retried until it listens.)
@@ -232,7 +248,8 @@ TEST_CASE("socket activation: scanmeshd adopts the socket systemd-socket-activat
       [&] { return ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0; }));
   CHECK(wrong.process->wait() == 1);  // started by the connection, it refuses the socket
   ::close(fd);
-  CHECK_THAT(wrong.log(), Catch::Contains("none is a listening Unix stream socket at " + wrong.socket.string()));
+  CHECK_THAT(wrong.log(),
+             Catch::Contains("none is a listening Unix stream socket at " + wrong.socket.string()));
 }
 
 TEST_CASE("the watchdog is pinged from the io loop when WATCHDOG_USEC is set for this process",
@@ -255,18 +272,24 @@ TEST_CASE("the watchdog is pinged from the io loop when WATCHDOG_USEC is set for
   while (auto m = other.notify.next(std::chrono::milliseconds(300))) CHECK(*m != "WATCHDOG=1");
 }
 
-TEST_CASE("SIGHUP reloads the configuration, says what needs a restart, and keeps a good one over a bad one",
-          "[e2e][systemd]") {
+TEST_CASE(
+    "SIGHUP reloads the configuration, says what needs a restart, and keeps a good one over a bad "
+    "one",
+    "[e2e][systemd]") {
   Daemon d;
   const auto cfg = d.dir / "d.toml";
   test::spit(cfg, "[daemon]\nmax_clients = 8\n[backend]\nkind = \"sim\"\n");
   d.start_ready(cfg.string());
   Client c = d.client();
   auto max_clients = [&] {
-    return c.request("config.get").body.get_object("config")->get_object("daemon")->get_int("max_clients");
+    return c.request("config.get")
+        .body.get_object("config")
+        ->get_object("daemon")
+        ->get_int("max_clients");
   };
   CHECK(max_clients() == 8);
-  test::spit(cfg, "[daemon]\nmax_clients = 16\n[backend]\nkind = \"sim\"\n[sim]\npart = \"sphere\"\n");
+  test::spit(cfg,
+             "[daemon]\nmax_clients = 16\n[backend]\nkind = \"sim\"\n[sim]\npart = \"sphere\"\n");
   d.process->signal(SIGHUP);
   REQUIRE(d.notify.await("RELOADING=1"));
   REQUIRE(d.notify.await("READY=1"));
@@ -278,11 +301,13 @@ TEST_CASE("SIGHUP reloads the configuration, says what needs a restart, and keep
   CHECK(max_clients() == 16);
   const std::string log = d.log();
   CHECK_THAT(log, Catch::Contains("<3>reload refused, the running configuration stays:"));
-  CHECK_THAT(log, Catch::Contains("<3>" + cfg.string() + ": daemon.max_clients: must be in [1, 4096], got 0"));
+  CHECK_THAT(log, Catch::Contains("<3>" + cfg.string() +
+                                  ": daemon.max_clients: must be in [1, 4096], got 0"));
   CHECK_THAT(log, Catch::Contains("<3>" + cfg.string() + ": daemon.bogus: unknown key"));
 }
 
-TEST_CASE("a bad configuration is reported whole, with file and key, before anything opens", "[e2e]") {
+TEST_CASE("a bad configuration is reported whole, with file and key, before anything opens",
+          "[e2e]") {
   Daemon d;
   const auto cfg = d.dir / "bad.toml";
   test::spit(cfg, "[daemon]\nmax_clients = -1\n[sim]\npart = \"teapot\"\nspacing_mm = 0\n");
@@ -290,52 +315,67 @@ TEST_CASE("a bad configuration is reported whole, with file and key, before anyt
   CHECK(d.process->wait() == 1);
   const std::string log = d.log();
   CHECK_THAT(log, Catch::Contains("<3>configuration errors:"));
-  CHECK_THAT(log, Catch::Contains(cfg.string() + ": daemon.max_clients: must be in [1, 4096], got -1"));
+  CHECK_THAT(log,
+             Catch::Contains(cfg.string() + ": daemon.max_clients: must be in [1, 4096], got -1"));
   CHECK_THAT(log, Catch::Contains(cfg.string() + ": sim.part: unknown part 'teapot'"));
-  CHECK_THAT(log, Catch::Contains(cfg.string() + ": sim.spacing_mm: must be in [0.001, 50], got 0"));
+  CHECK_THAT(log,
+             Catch::Contains(cfg.string() + ": sim.spacing_mm: must be in [0.001, 50], got 0"));
   CHECK_FALSE(std::filesystem::exists(d.socket));
   CHECK_FALSE(std::filesystem::exists(d.state));
 }
 
-TEST_CASE("SIGKILL mid-scan, then a restart: the scan is interrupted, nothing acknowledged is lost, "
-          "and it resumes to the end", "[e2e][faults]") {
+TEST_CASE(
+    "SIGKILL mid-scan, then a restart: the scan is interrupted, nothing acknowledged is lost, "
+    "and it resumes to the end",
+    "[e2e][faults]") {
   Daemon d;
   d.start_ready();
   std::uint64_t acknowledged = 0;
   {
     Client c = d.client();
-    REQUIRE(c.request("scan.start", proto::Object().set("name", "crash").set("parameters", Parameters{{"playback", std::int64_t{4}}}))
-                .cls == proto::MessageClass::kReply);
-    REQUIRE(test::eventually([&] {
-      acknowledged = proto::status_info_from(c.request("status").body).scan.counters.samples;
-      return acknowledged > 20000;
-    }, std::chrono::seconds(30)));
+    REQUIRE(
+        c.request("scan.start", proto::Object()
+                                    .set("name", "crash")
+                                    .set("parameters", Parameters{{"playback", std::int64_t{4}}}))
+            .cls == proto::MessageClass::kReply);
+    REQUIRE(test::eventually(
+        [&] {
+          acknowledged = proto::status_info_from(c.request("status").body).scan.counters.samples;
+          return acknowledged > 20000;
+        },
+        std::chrono::seconds(30)));
   }
   d.process->signal(SIGKILL);
   CHECK(d.process->wait() == 128 + SIGKILL);
 
   d.start_ready();
   Client c = d.client();
-  const ScanRecord before = proto::scan_record_from(*c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
+  const ScanRecord before = proto::scan_record_from(
+      *c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
   CHECK(before.state == "interrupted");
   CHECK(before.samples >= acknowledged);
   CHECK(before.samples < kSimSamples);
   CHECK_THAT(d.log(), Catch::Contains("scan 1 'crash' was interrupted"));
-  CHECK(c.request("scan.close_interrupted", proto::Object().set("scan", 2)).error_code == "not_found");
+  CHECK(c.request("scan.close_interrupted", proto::Object().set("scan", 2)).error_code ==
+        "not_found");
 
   c.request("watch");
-  const proto::Message resumed = c.request("scan.resume_interrupted", proto::Object().set("scan", 1));
+  const proto::Message resumed =
+      c.request("scan.resume_interrupted", proto::Object().set("scan", 1));
   REQUIRE(resumed.cls == proto::MessageClass::kReply);
   const ScanStatus end = wait_scan_end(c, 1);
   CHECK(end.reason == "finished");
   // Every sample exactly once: the first segment's and the new one's add up to the whole scan.
   CHECK(end.counters.samples == kSimSamples);
-  const ScanRecord after = proto::scan_record_from(*c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
+  const ScanRecord after = proto::scan_record_from(
+      *c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
   CHECK(after.state == "finished");
   CHECK(std::filesystem::exists(d.state / "scans/scan-1.2.stream"));
-  CHECK(c.request("scan.resume_interrupted", proto::Object().set("scan", 1)).error_code == "bad_state");
+  CHECK(c.request("scan.resume_interrupted", proto::Object().set("scan", 1)).error_code ==
+        "bad_state");
   const auto stl = d.state / "exports/crash.stl";
-  REQUIRE(c.request("mesh.export", proto::Object().set("path", stl.string())).cls == proto::MessageClass::kReply);
+  REQUIRE(c.request("mesh.export", proto::Object().set("path", stl.string())).cls ==
+          proto::MessageClass::kReply);
   CHECK(recon::analyze(meshio::read_mesh(stl)).non_manifold_edges == 0);
 }
 
@@ -344,9 +384,14 @@ TEST_CASE("an interrupted scan can be closed instead", "[e2e][faults]") {
   d.start_ready();
   {
     Client c = d.client();
-    REQUIRE(c.request("scan.start", proto::Object().set("name", "x").set("parameters", Parameters{{"playback", std::int64_t{1}}}))
-                .cls == proto::MessageClass::kReply);
-    REQUIRE(test::eventually([&] { return proto::status_info_from(c.request("status").body).scan.counters.samples > 5000; }));
+    REQUIRE(
+        c.request("scan.start", proto::Object()
+                                    .set("name", "x")
+                                    .set("parameters", Parameters{{"playback", std::int64_t{1}}}))
+            .cls == proto::MessageClass::kReply);
+    REQUIRE(test::eventually([&] {
+      return proto::status_info_from(c.request("status").body).scan.counters.samples > 5000;
+    }));
   }
   d.process->signal(SIGKILL);
   d.process->wait();
@@ -357,7 +402,8 @@ TEST_CASE("an interrupted scan can be closed instead", "[e2e][faults]") {
   CHECK(proto::scan_record_from(*closed.body.get_object("scan")).state == "closed");
   // Its mesh is made from its journal on request.
   const auto stl = d.state / "exports/x.stl";
-  CHECK(c.request("mesh.export", proto::Object().set("path", stl.string()).set("scan", 1)).cls == proto::MessageClass::kReply);
+  CHECK(c.request("mesh.export", proto::Object().set("path", stl.string()).set("scan", 1)).cls ==
+        proto::MessageClass::kReply);
   // A new scan gets the next id.
   const proto::Message next = c.request("scan.start", proto::Object().set("name", "y"));
   CHECK(proto::scan_record_from(*next.body.get_object("scan")).id == 2);
@@ -389,89 +435,108 @@ TEST_CASE("scanctl: text and --json output, a progress bar while waiting, exit c
   CHECK_THAT(list.out, Catch::Contains("finished"));
   const auto exp = scanctl({"mesh", "export", "--path", (d.state / "exports/cli.ply").string()});
   CHECK(exp.status == 0);
-  CHECK_THAT(exp.out, Catch::StartsWith("wrote " + (d.state / "exports/cli.ply").string() + " (ply, scan 1:"));
+  CHECK_THAT(exp.out, Catch::StartsWith("wrote " + (d.state / "exports/cli.ply").string() +
+                                        " (ply, scan 1:"));
   const auto refused = scanctl({"mesh", "export", "--path", (d.dir / "x.stl").string()});
   CHECK(refused.status == 1);
   CHECK_THAT(refused.err, Catch::StartsWith("scanctl: path_refused: "));
   const auto bad_param = scanctl({"scan", "start", "--name", "z", "--param", "part=teapot"});
   CHECK(bad_param.status == 1);
-  CHECK_THAT(bad_param.err, Catch::Contains("bad_argument: parameters.part: unknown part 'teapot'"));
-  const auto nobody = test::run_program(SCANCTL_EXE, d.dir, {"--socket", (d.dir / "none.sock").string(), "status"});
+  CHECK_THAT(bad_param.err,
+             Catch::Contains("bad_argument: parameters.part: unknown part 'teapot'"));
+  const auto nobody =
+      test::run_program(SCANCTL_EXE, d.dir, {"--socket", (d.dir / "none.sock").string(), "status"});
   CHECK(nobody.status == 3);
   CHECK_THAT(nobody.err, Catch::Contains("cannot connect to scanmeshd"));
 }
 
-TEST_CASE("the systemd units pass systemd-analyze verify; sysusers and tmpfiles apply", "[e2e][systemd]") {
+TEST_CASE("the systemd units pass systemd-analyze verify; sysusers and tmpfiles apply",
+          "[e2e][systemd]") {
   TempDir dir;
   std::string service = test::slurp(SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.service.in");
   auto replace = [&](const std::string& from, const std::string& to) {
-    for (std::size_t at; (at = service.find(from)) != std::string::npos;) service.replace(at, from.size(), to);
+    for (std::size_t at; (at = service.find(from)) != std::string::npos;)
+      service.replace(at, from.size(), to);
   };
   replace("@SCANMESHD@", SCANMESHD_EXE);
   replace("@SCANMESH_CONFIG@", kSimConfig);
   test::spit(dir / "scanmesh.service", service);
-  std::filesystem::copy_file(SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.socket", dir / "scanmesh.socket");
-  const auto verify = test::run_program("/usr/bin/systemd-analyze", dir,
-                                        {"verify", (dir / "scanmesh.socket").string(), (dir / "scanmesh.service").string()});
+  std::filesystem::copy_file(SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.socket",
+                             dir / "scanmesh.socket");
+  const auto verify = test::run_program(
+      "/usr/bin/systemd-analyze", dir,
+      {"verify", (dir / "scanmesh.socket").string(), (dir / "scanmesh.service").string()});
   INFO(verify.err);
   CHECK(verify.status == 0);
   CHECK(verify.err.empty());  // unknown keys are only warnings: none may appear
   CHECK(verify.out.empty());
-  for (const char* key : {"Type=notify", "WatchdogSec=", "Restart=on-failure", "RuntimeDirectory=scanmesh",
-                          "ProtectSystem=strict", "PrivateTmp=yes", "NoNewPrivileges=yes", "DevicePolicy=closed",
-                          "DeviceAllow=char-ttyUSB rw", "RestrictAddressFamilies=AF_UNIX", "--foreground"})
+  for (const char* key :
+       {"Type=notify", "WatchdogSec=", "Restart=on-failure", "RuntimeDirectory=scanmesh",
+        "ProtectSystem=strict", "PrivateTmp=yes", "NoNewPrivileges=yes", "DevicePolicy=closed",
+        "DeviceAllow=char-ttyUSB rw", "RestrictAddressFamilies=AF_UNIX", "--foreground"})
     CHECK_THAT(service, Catch::Contains(key));
   const std::string socket = test::slurp(dir / "scanmesh.socket");
-  for (const char* key : {"ListenStream=/run/scanmesh/control.sock", "SocketMode=0660", "SocketGroup=scanmesh"})
+  for (const char* key :
+       {"ListenStream=/run/scanmesh/control.sock", "SocketMode=0660", "SocketGroup=scanmesh"})
     CHECK_THAT(socket, Catch::Contains(key));
 
   const auto root = dir / "root";
   std::filesystem::create_directories(root / "etc");
-  const auto users = test::run_program("/usr/bin/systemd-sysusers", dir,
-                                       {"--root=" + root.string(), SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.sysusers"});
+  const auto users = test::run_program(
+      "/usr/bin/systemd-sysusers", dir,
+      {"--root=" + root.string(), SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.sysusers"});
   INFO(users.err);
   CHECK(users.status == 0);
   CHECK_THAT(test::slurp(root / "etc/passwd"), Catch::Contains("scanmesh:x:"));
   CHECK_THAT(test::slurp(root / "etc/group"), Catch::Contains("scanmesh:x:"));
-  const auto tmpfiles = test::run_program("/usr/bin/systemd-tmpfiles", dir,
-                                          {"--create", "--root=" + root.string(), SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.tmpfiles"});
+  const auto tmpfiles =
+      test::run_program("/usr/bin/systemd-tmpfiles", dir,
+                        {"--create", "--root=" + root.string(),
+                         SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.tmpfiles"});
   INFO(tmpfiles.err);
   CHECK(tmpfiles.status == 0);
-  struct stat st{};
+  struct stat st {};
   REQUIRE(::stat((root / "var/lib/scanmesh/exports").c_str(), &st) == 0);
   CHECK((st.st_mode & 07777) == 02770);
 }
 
-TEST_CASE("cmake --install lays the daemon out as Debian expects; CPack makes a .deb that creates "
-          "the user and enables the socket", "[e2e][packaging]") {
+TEST_CASE(
+    "cmake --install lays the daemon out as Debian expects; CPack makes a .deb that creates "
+    "the user and enables the socket",
+    "[e2e][packaging]") {
   TempDir dir;
   const auto root = dir / "root";
-  const auto install = test::run_program(
-      "/usr/bin/env", dir,
-      {"DESTDIR=" + root.string(), CMAKE_EXE, "--install", SCANMESH_BINARY_DIR, "--prefix", "/usr",
-       "--component", "daemon"});
+  const auto install =
+      test::run_program("/usr/bin/env", dir,
+                        {"DESTDIR=" + root.string(), CMAKE_EXE, "--install", SCANMESH_BINARY_DIR,
+                         "--prefix", "/usr", "--component", "daemon"});
   INFO(install.out << install.err);
   REQUIRE(install.status == 0);
-  for (const char* f : {"usr/bin/scanmeshd", "usr/bin/scanctl", "usr/lib/systemd/system/scanmesh.socket",
-                        "usr/lib/systemd/system/scanmesh.service", "usr/lib/sysusers.d/scanmesh.conf",
-                        "usr/lib/tmpfiles.d/scanmesh.conf", "usr/lib/udev/rules.d/60-scanmesh.rules",
-                        "etc/scanmesh/scanmesh.toml", "usr/share/doc/scanmesh/PROTOCOL.md"})
+  for (const char* f :
+       {"usr/bin/scanmeshd", "usr/bin/scanctl", "usr/lib/systemd/system/scanmesh.socket",
+        "usr/lib/systemd/system/scanmesh.service", "usr/lib/sysusers.d/scanmesh.conf",
+        "usr/lib/tmpfiles.d/scanmesh.conf", "usr/lib/udev/rules.d/60-scanmesh.rules",
+        "etc/scanmesh/scanmesh.toml", "usr/share/doc/scanmesh/PROTOCOL.md"})
     CHECK(std::filesystem::is_regular_file(root / f));
   CHECK_THAT(test::slurp(root / "usr/lib/systemd/system/scanmesh.service"),
-             Catch::Contains("ExecStart=/usr/bin/scanmeshd --config /etc/scanmesh/scanmesh.toml --foreground"));
+             Catch::Contains(
+                 "ExecStart=/usr/bin/scanmeshd --config /etc/scanmesh/scanmesh.toml --foreground"));
   // The installed daemon accepts the installed configuration.
-  const auto check = test::run_program((root / "usr/bin/scanmeshd").string(), dir,
-                                       {"--config", (root / "etc/scanmesh/scanmesh.toml").string(), "--check-config"});
+  const auto check = test::run_program(
+      (root / "usr/bin/scanmeshd").string(), dir,
+      {"--config", (root / "etc/scanmesh/scanmesh.toml").string(), "--check-config"});
   CHECK(check.status == 0);
   // An operator's configuration survives a reinstall.
   test::spit(root / "etc/scanmesh/scanmesh.toml", "# mine\n");
-  REQUIRE(test::run_program("/usr/bin/env", dir, {"DESTDIR=" + root.string(), CMAKE_EXE, "--install",
-                                                  SCANMESH_BINARY_DIR, "--prefix", "/usr", "--component", "daemon"})
+  REQUIRE(test::run_program("/usr/bin/env", dir,
+                            {"DESTDIR=" + root.string(), CMAKE_EXE, "--install",
+                             SCANMESH_BINARY_DIR, "--prefix", "/usr", "--component", "daemon"})
               .status == 0);
   CHECK(test::slurp(root / "etc/scanmesh/scanmesh.toml") == "# mine\n");
 
-  const auto pack = test::run_program(CPACK_EXE, dir, {"-G", "DEB", "-B", (dir / "deb").string(), "--config",
-                                                       SCANMESH_BINARY_DIR "/CPackConfig.cmake"});
+  const auto pack = test::run_program(CPACK_EXE, dir,
+                                      {"-G", "DEB", "-B", (dir / "deb").string(), "--config",
+                                       SCANMESH_BINARY_DIR "/CPackConfig.cmake"});
   INFO(pack.out << pack.err);
   REQUIRE(pack.status == 0);
   const auto deb = dir / "deb" / "scanmesh_0.1.0_amd64.deb";
@@ -483,16 +548,19 @@ TEST_CASE("cmake --install lays the daemon out as Debian expects; CPack makes a 
   CHECK_THAT(info.out, Catch::Contains("postinst"));
   CHECK_THAT(info.out, Catch::Contains("conffiles"));
   const auto ctl = dir / "control";
-  REQUIRE(test::run_program("/usr/bin/dpkg-deb", dir, {"-e", deb.string(), ctl.string()}).status == 0);
+  REQUIRE(test::run_program("/usr/bin/dpkg-deb", dir, {"-e", deb.string(), ctl.string()}).status ==
+          0);
   const std::string postinst = test::slurp(ctl / "postinst");
   CHECK_THAT(postinst, Catch::Contains("systemd-sysusers /usr/lib/sysusers.d/scanmesh.conf"));
   CHECK_THAT(postinst, Catch::Contains("deb-systemd-helper enable scanmesh.socket"));
   CHECK(test::slurp(ctl / "conffiles") == "/etc/scanmesh/scanmesh.toml\n");
   // What postinst does to a system, applied to the package's own files in an alternate root.
   const auto sys = dir / "sys";
-  REQUIRE(test::run_program("/usr/bin/dpkg-deb", dir, {"-x", deb.string(), sys.string()}).status == 0);
-  CHECK(test::run_program("/usr/bin/systemd-sysusers", dir,
-                          {"--root=" + sys.string(), (sys / "usr/lib/sysusers.d/scanmesh.conf").string()})
+  REQUIRE(test::run_program("/usr/bin/dpkg-deb", dir, {"-x", deb.string(), sys.string()}).status ==
+          0);
+  CHECK(test::run_program(
+            "/usr/bin/systemd-sysusers", dir,
+            {"--root=" + sys.string(), (sys / "usr/lib/sysusers.d/scanmesh.conf").string()})
             .status == 0);
   CHECK_THAT(test::slurp(sys / "etc/passwd"), Catch::Contains("scanmesh:x:"));
 }

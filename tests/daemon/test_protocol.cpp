@@ -15,7 +15,7 @@ namespace {
 struct DecodeCase {
   const char* legend;
   std::string line;
-  std::string cmd;         ///< expected command, or "" when an error is expected
+  std::string cmd;  ///< expected command, or "" when an error is expected
   std::optional<std::int64_t> id;
   std::string error_code;  ///< expected ProtocolError code
 };
@@ -25,22 +25,30 @@ struct DecodeCase {
 TEST_CASE("requests decode or fail with the right code and keep their id", "[daemon][protocol]") {
   const std::vector<DecodeCase> cases = {
       {"plain request", R"({"cmd":"status","id":1})", "status", 1, ""},
-      {"no id (allowed: the reply carries null)", R"({"cmd":"version"})", "version", std::nullopt, ""},
-      {"negative and large ids", R"({"cmd":"status","id":-9007199254740993})", "status", -9007199254740993LL, ""},
+      {"no id (allowed: the reply carries null)", R"({"cmd":"version"})", "version", std::nullopt,
+       ""},
+      {"negative and large ids", R"({"cmd":"status","id":-9007199254740993})", "status",
+       -9007199254740993LL, ""},
       {"extra fields are arguments", R"({"cmd":"scan.info","id":7,"scan":3})", "scan.info", 7, ""},
       {"leading and trailing blanks", "  {\"cmd\":\"status\",\"id\":2}  ", "status", 2, ""},
       {"unicode escapes", R"({"cmd":"st\u0061tus","id":3})", "status", 3, ""},
       {"not JSON", "status", "", std::nullopt, std::string(errc::kInvalidJson)},
-      {"truncated object", R"({"cmd":"status","id":1)", "", std::nullopt, std::string(errc::kInvalidJson)},
-      {"two objects on one line", R"({"cmd":"a"}{"cmd":"b"})", "", std::nullopt, std::string(errc::kInvalidJson)},
-      {"invalid UTF-8", std::string("{\"cmd\":\"st\xff\xfe\",\"id\":1}"), "", std::nullopt, std::string(errc::kInvalidJson)},
+      {"truncated object", R"({"cmd":"status","id":1)", "", std::nullopt,
+       std::string(errc::kInvalidJson)},
+      {"two objects on one line", R"({"cmd":"a"}{"cmd":"b"})", "", std::nullopt,
+       std::string(errc::kInvalidJson)},
+      {"invalid UTF-8", std::string("{\"cmd\":\"st\xff\xfe\",\"id\":1}"), "", std::nullopt,
+       std::string(errc::kInvalidJson)},
       {"an array", R"([1,2,3])", "", std::nullopt, std::string(errc::kBadRequest)},
       {"a string", R"("status")", "", std::nullopt, std::string(errc::kBadRequest)},
       {"no cmd, id kept", R"({"id":5})", "", 5, std::string(errc::kBadRequest)},
       {"cmd not a string, id kept", R"({"cmd":5,"id":6})", "", 6, std::string(errc::kBadRequest)},
-      {"id a string", R"({"cmd":"status","id":"1"})", "", std::nullopt, std::string(errc::kBadRequest)},
-      {"id a float", R"({"cmd":"status","id":1.5})", "", std::nullopt, std::string(errc::kBadRequest)},
-      {"id beyond int64", R"({"cmd":"status","id":18446744073709551615})", "", std::nullopt, std::string(errc::kBadRequest)},
+      {"id a string", R"({"cmd":"status","id":"1"})", "", std::nullopt,
+       std::string(errc::kBadRequest)},
+      {"id a float", R"({"cmd":"status","id":1.5})", "", std::nullopt,
+       std::string(errc::kBadRequest)},
+      {"id beyond int64", R"({"cmd":"status","id":18446744073709551615})", "", std::nullopt,
+       std::string(errc::kBadRequest)},
   };
   for (const auto& c : cases) {
     INFO(c.legend);
@@ -64,7 +72,8 @@ TEST_CASE("lines have the documented bytes", "[daemon][protocol]") {
   CHECK(proto::hello_line("1.2.3") ==
         "{\"class\":\"HELLO\",\"proto_major\":1,\"proto_minor\":0,\"daemon\":\"1.2.3\"}\n");
   CHECK(proto::error_line(4, errc::kUnknownCommand, "unknown command 'x'") ==
-        "{\"class\":\"ERROR\",\"id\":4,\"code\":\"unknown_command\",\"message\":\"unknown command 'x'\"}\n");
+        "{\"class\":\"ERROR\",\"id\":4,\"code\":\"unknown_command\",\"message\":\"unknown command "
+        "'x'\"}\n");
   CHECK(proto::error_line(std::nullopt, errc::kInvalidJson, "bad") ==
         "{\"class\":\"ERROR\",\"id\":null,\"code\":\"invalid_json\",\"message\":\"bad\"}\n");
   proto::Object body;
@@ -74,7 +83,8 @@ TEST_CASE("lines have the documented bytes", "[daemon][protocol]") {
   // A body cannot override the envelope.
   proto::Object sneaky;
   sneaky.set("class", "EVENT").set("id", 99);
-  CHECK(proto::reply_line(1, "status", sneaky) == "{\"class\":\"REPLY\",\"id\":1,\"cmd\":\"status\"}\n");
+  CHECK(proto::reply_line(1, "status", sneaky) ==
+        "{\"class\":\"REPLY\",\"id\":1,\"cmd\":\"status\"}\n");
   CHECK(proto::event_line("mesh", proto::to_object(MeshCounts{2, 10, 20, 5, 1})) ==
         "{\"class\":\"EVENT\",\"event\":\"mesh\",\"scan\":2,\"vertices\":10,\"triangles\":20,"
         "\"added\":5,\"removed\":1}\n");
@@ -116,9 +126,11 @@ TEST_CASE("arguments are read with type checks naming the key", "[daemon][protoc
   };
   CHECK(code_of([&] { a.get_int("s"); }) == "bad_argument: 's' must be an integer, got a string");
   CHECK(code_of([&] { a.get_int("f"); }) == "bad_argument: 'f' must be an integer, got a number");
-  CHECK(code_of([&] { a.get_uint("i"); }) == "bad_argument: 'i' must be an integer >= 0, got an integer");
+  CHECK(code_of([&] { a.get_uint("i"); }) ==
+        "bad_argument: 'i' must be an integer >= 0, got an integer");
   CHECK(code_of([&] { a.get_string("b"); }) == "bad_argument: 'b' must be a string, got a boolean");
-  CHECK(code_of([&] { a.get_bool("i"); }) == "bad_argument: 'i' must be true or false, got an integer");
+  CHECK(code_of([&] { a.get_bool("i"); }) ==
+        "bad_argument: 'i' must be true or false, got an integer");
   CHECK(code_of([&] { a.get_parameters("bad"); }) ==
         "bad_argument: 'bad.x' must be a string, number or boolean, got an array");
 }
@@ -130,7 +142,8 @@ TEST_CASE("every message value round-trips through its one JSON form", "[daemon]
   s.uptime_s = 12.5;
   s.clients = 3;
   s.protocol_errors = 2;
-  s.devices.push_back({"lkg", "sensor", "keyence-lkg", "/dev/ttyUSB0", DeviceState::kLost, "timeout", 100, 4});
+  s.devices.push_back(
+      {"lkg", "sensor", "keyence-lkg", "/dev/ttyUSB0", DeviceState::kLost, "timeout", 100, 4});
   s.devices.push_back({"stage", "stage", "grbl", "", DeviceState::kOk, "", 5, 0});
   s.scan.state = ScanState::kPaused;
   s.scan.reason = "device_lost: lkg";
@@ -175,7 +188,8 @@ TEST_CASE("every message value round-trips through its one JSON form", "[daemon]
   r.state = "interrupted";
   r.started_utc = "2024-01-01T00:00:00Z";
   r.samples = 5;
-  r.parameters = {{"part", std::string("sphere")}, {"seed", std::int64_t{4}}, {"x", 0.25}, {"b", true}};
+  r.parameters = {
+      {"part", std::string("sphere")}, {"seed", std::int64_t{4}}, {"x", 0.25}, {"b", true}};
   const ScanRecord r2 = proto::scan_record_from(proto::Fields(proto::to_object(r)));
   CHECK(r2.id == 7);
   CHECK(r2.state == "interrupted");
@@ -194,8 +208,8 @@ TEST_CASE("every message value round-trips through its one JSON form", "[daemon]
 
 TEST_CASE("clients ignore fields they do not know and reject lines that are not objects",
           "[daemon][protocol]") {
-  const proto::Message m =
-      proto::decode_message(R"({"class":"EVENT","event":"device","name":"x","state":"ok","future":[1,{"a":2}]})");
+  const proto::Message m = proto::decode_message(
+      R"({"class":"EVENT","event":"device","name":"x","state":"ok","future":[1,{"a":2}]})");
   CHECK(m.cls == proto::MessageClass::kEvent);
   CHECK(m.event == "device");
   CHECK(proto::device_info_from(m.body).state == DeviceState::kOk);

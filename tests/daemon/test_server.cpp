@@ -47,7 +47,8 @@ TEST_CASE("a client gets HELLO, then answers to version, status and devices", "[
   CHECK(v.cls == proto::MessageClass::kReply);
   CHECK(v.id == 1);
   const VersionInfo vi = proto::version_info_from(v.body);
-  CHECK((vi.daemon == "test" && vi.proto_major == 1 && vi.proto_minor == 0 && vi.backend == "scripted"));
+  CHECK((vi.daemon == "test" && vi.proto_major == 1 && vi.proto_minor == 0 &&
+         vi.backend == "scripted"));
 
   std::string raw;
   const proto::Message s = c->request("status", {}, &raw);
@@ -60,7 +61,8 @@ TEST_CASE("a client gets HELLO, then answers to version, status and devices", "[
   CHECK(si.scan.state == ScanState::kIdle);
   // The documented fields are on the wire.
   const auto j = nlohmann::json::parse(raw);
-  for (const char* k : {"samples", "points", "triangles", "meshing_lag_points", "journal_bytes", "errors"})
+  for (const char* k :
+       {"samples", "points", "triangles", "meshing_lag_points", "journal_bytes", "errors"})
     CHECK(j["scan"].contains(k));
 
   const proto::Message d = c->request("devices");
@@ -90,7 +92,8 @@ TEST_CASE("bad requests get an ERROR and the connection carries on", "[daemon]")
       {"{\"cmd\":\"scan.info\",\"id\":7,\"scan\":99}\n", "not_found", 7},
       {"{\"cmd\":\"scan.pause\",\"id\":8}\n", "bad_state", 8},
       {"{\"cmd\":\"scan.start\",\"id\":9,\"name\":\"\"}\n", "bad_argument", 9},
-      {"{\"cmd\":\"scan.start\",\"id\":10,\"name\":\"x\",\"parameters\":{\"bogus\":1}}\n", "bad_argument", 10},
+      {"{\"cmd\":\"scan.start\",\"id\":10,\"name\":\"x\",\"parameters\":{\"bogus\":1}}\n",
+       "bad_argument", 10},
       {"{\"cmd\":\"mesh.export\",\"id\":11,\"path\":\"/tmp/x.docx\"}\n", "bad_argument", 11},
   };
   for (const auto& b : bad) {
@@ -111,8 +114,9 @@ TEST_CASE("bad requests get an ERROR and the connection carries on", "[daemon]")
   CHECK(proto::status_info_from(c->request("status").body).protocol_errors == bad.size());
 }
 
-TEST_CASE("a line longer than 64 KiB gets line_too_long and the connection is closed; others carry on",
-          "[daemon][limits]") {
+TEST_CASE(
+    "a line longer than 64 KiB gets line_too_long and the connection is closed; others carry on",
+    "[daemon][limits]") {
   DaemonHarness h;
   auto other = h.client();
   auto c = h.client();
@@ -137,15 +141,18 @@ TEST_CASE("watchers get state, progress, mesh and device events", "[daemon]") {
   CHECK(r.body.get_bool("watching") == true);
   CHECK(scan_of(await_event(*w, "state")).state == ScanState::kIdle);  // the baseline
 
-  const proto::Message started = ctl->request(
-      "scan.start", proto::Object().set("name", "bracket").set("parameters", Parameters{{"seed", std::int64_t{2}}}));
+  const proto::Message started =
+      ctl->request("scan.start", proto::Object()
+                                     .set("name", "bracket")
+                                     .set("parameters", Parameters{{"seed", std::int64_t{2}}}));
   REQUIRE(started.cls == proto::MessageClass::kReply);
   const ScanRecord rec = proto::scan_record_from(*started.body.get_object("scan"));
   CHECK(rec.name == "bracket");
   CHECK(scan_of(await_event(*w, "state")).state == ScanState::kRunning);
 
   h.engine().advance(5000, 4000);
-  const auto p = await_event(*w, "progress", [](const proto::Message& m) { return scan_of(m).counters.samples == 5000; });
+  const auto p = await_event(
+      *w, "progress", [](const proto::Message& m) { return scan_of(m).counters.samples == 5000; });
   CHECK(scan_of(p).counters.points == 4000);
 
   CHECK(ctl->request("scan.start", proto::Object().set("name", "again")).error_code == "busy");
@@ -175,17 +182,21 @@ TEST_CASE("watchers get state, progress, mesh and device events", "[daemon]") {
   CHECK(after->cls == proto::MessageClass::kReply);
 }
 
-TEST_CASE("a lost device pauses the scan, which resumes when the device is back; nothing is "
-          "counted while paused", "[daemon][faults]") {
+TEST_CASE(
+    "a lost device pauses the scan, which resumes when the device is back; nothing is "
+    "counted while paused",
+    "[daemon][faults]") {
   DaemonHarness h;
   auto w = h.client();
   w->request("watch");
   await_event(*w, "state");
-  REQUIRE(w->request("scan.start", proto::Object().set("name", "s")).cls == proto::MessageClass::kReply);
+  REQUIRE(w->request("scan.start", proto::Object().set("name", "s")).cls ==
+          proto::MessageClass::kReply);
   h.engine().advance(100, 90);
   h.engine().set_device(0, DeviceState::kLost, "no reply for 1500 ms");
   const auto dev = proto::device_info_from(await_event(*w, "device").body);
-  CHECK((dev.name == "probe-sensor" && dev.state == DeviceState::kLost && dev.detail == "no reply for 1500 ms"));
+  CHECK((dev.name == "probe-sensor" && dev.state == DeviceState::kLost &&
+         dev.detail == "no reply for 1500 ms"));
   const auto paused = scan_of(await_event(*w, "state", [](const proto::Message& m) {
     return scan_of(m).state != ScanState::kRunning || !scan_of(m).reason.empty();
   }));
@@ -207,14 +218,19 @@ TEST_CASE("a lost device pauses the scan, which resumes when the device is back;
   CHECK(proto::status_info_from(w->request("status").body).scan.state == ScanState::kPaused);
 }
 
-TEST_CASE("mesh.export writes STL, PLY and OBJ in an export folder; mesh.preview a PNG", "[daemon][export]") {
+TEST_CASE("mesh.export writes STL, PLY and OBJ in an export folder; mesh.preview a PNG",
+          "[daemon][export]") {
   DaemonHarness h;
   auto c = h.client();
-  CHECK(c->request("mesh.export", proto::Object().set("path", (h.dir() / "exports/none.stl").string())).error_code ==
-        "no_mesh");
-  REQUIRE(c->request("scan.start", proto::Object().set("name", "s")).cls == proto::MessageClass::kReply);
+  CHECK(c->request("mesh.export",
+                   proto::Object().set("path", (h.dir() / "exports/none.stl").string()))
+            .error_code == "no_mesh");
+  REQUIRE(c->request("scan.start", proto::Object().set("name", "s")).cls ==
+          proto::MessageClass::kReply);
   h.engine().finish();
-  REQUIRE(eventually([&] { return proto::status_info_from(c->request("status").body).scan.state == ScanState::kIdle; }));
+  REQUIRE(eventually([&] {
+    return proto::status_info_from(c->request("status").body).scan.state == ScanState::kIdle;
+  }));
   const recon::Mesh part = sim::make_part("container");
   for (const char* ext : {"stl", "ply", "obj"}) {
     const auto path = h.dir() / "exports" / (std::string("part.") + ext);
@@ -241,29 +257,37 @@ TEST_CASE("mesh.export writes STL, PLY and OBJ in an export folder; mesh.preview
 
   const auto png = h.dir() / "exports/part.png";
   const proto::Message pm = c->request(
-      "mesh.preview", proto::Object().set("path", png.string()).set("width_px", 320).set("height_px", 200));
+      "mesh.preview",
+      proto::Object().set("path", png.string()).set("width_px", 320).set("height_px", 200));
   REQUIRE(pm.cls == proto::MessageClass::kReply);
   const std::string bytes = test::slurp(png);
   REQUIRE(bytes.size() > 33);
   CHECK(bytes.substr(0, 8) == "\x89PNG\r\n\x1a\n");
   auto be32 = [&](std::size_t at) {
-    return (std::uint32_t(std::uint8_t(bytes[at])) << 24) | (std::uint32_t(std::uint8_t(bytes[at + 1])) << 16) |
-           (std::uint32_t(std::uint8_t(bytes[at + 2])) << 8) | std::uint32_t(std::uint8_t(bytes[at + 3]));
+    return (std::uint32_t(std::uint8_t(bytes[at])) << 24) |
+           (std::uint32_t(std::uint8_t(bytes[at + 1])) << 16) |
+           (std::uint32_t(std::uint8_t(bytes[at + 2])) << 8) |
+           std::uint32_t(std::uint8_t(bytes[at + 3]));
   };
   CHECK(bytes.substr(12, 4) == "IHDR");
   CHECK(be32(16) == 320);
   CHECK(be32(20) == 200);
-  CHECK(c->request("mesh.export", proto::Object().set("path", (h.dir() / "exports/x.stl").string()).set("scan", 77))
-            .error_code == "not_found");
+  CHECK(
+      c->request("mesh.export",
+                 proto::Object().set("path", (h.dir() / "exports/x.stl").string()).set("scan", 77))
+          .error_code == "not_found");
 }
 
 TEST_CASE("export paths outside the allowed folders are refused: '..', symlinks, relative paths",
           "[daemon][security]") {
   DaemonHarness h;
   auto c = h.client();
-  REQUIRE(c->request("scan.start", proto::Object().set("name", "s")).cls == proto::MessageClass::kReply);
+  REQUIRE(c->request("scan.start", proto::Object().set("name", "s")).cls ==
+          proto::MessageClass::kReply);
   h.engine().finish();
-  REQUIRE(eventually([&] { return proto::status_info_from(c->request("status").body).scan.state == ScanState::kIdle; }));
+  REQUIRE(eventually([&] {
+    return proto::status_info_from(c->request("status").body).scan.state == ScanState::kIdle;
+  }));
   const auto exports = h.dir() / "exports";
   std::filesystem::create_directories(h.dir() / "elsewhere");
   std::filesystem::create_directory_symlink(h.dir() / "elsewhere", exports / "link");
@@ -277,7 +301,8 @@ TEST_CASE("export paths outside the allowed folders are refused: '..', symlinks,
       {(h.dir() / "elsewhere/x.stl").string(), "is outside the folders"},
       {(exports / "../elsewhere/x.stl").string(), "must not contain '..'"},
       {(exports / "sub/../../x.stl").string(), "must not contain '..'"},
-      {(exports / "link/x.stl").string(), "its folder resolves to " + (h.dir() / "elsewhere").string()},
+      {(exports / "link/x.stl").string(),
+       "its folder resolves to " + (h.dir() / "elsewhere").string()},
       {(exports / "file-link.stl").string(), "is a symbolic link"},
       {"relative/x.stl", "must be an absolute path"},
       {(exports / "missing-dir/x.stl").string(), "cannot open its folder"},
@@ -291,8 +316,8 @@ TEST_CASE("export paths outside the allowed folders are refused: '..', symlinks,
   }
   CHECK_FALSE(std::filesystem::exists(h.dir() / "elsewhere/x.stl"));
   CHECK_FALSE(std::filesystem::exists(h.dir() / "elsewhere/target.stl"));
-  CHECK(c->request("mesh.export", proto::Object().set("path", (exports / "sub/ok.stl").string())).cls ==
-        proto::MessageClass::kReply);
+  CHECK(c->request("mesh.export", proto::Object().set("path", (exports / "sub/ok.stl").string()))
+            .cls == proto::MessageClass::kReply);
   CHECK(std::filesystem::is_regular_file(exports / "sub/ok.stl"));
 }
 
@@ -309,7 +334,8 @@ TEST_CASE("100 clients at once are all served", "[daemon][limits]") {
   }
 }
 
-TEST_CASE("clients beyond max_clients get too_many_clients; a freed slot is reused", "[daemon][limits]") {
+TEST_CASE("clients beyond max_clients get too_many_clients; a freed slot is reused",
+          "[daemon][limits]") {
   DaemonHarness h([](DaemonConfig& c) { c.max_clients = 4; });
   std::vector<std::unique_ptr<Client>> clients;
   for (int i = 0; i < 4; ++i) clients.push_back(h.client());
@@ -320,7 +346,8 @@ TEST_CASE("clients beyond max_clients get too_many_clients; a freed slot is reus
     CHECK_THAT(e.what(), Catch::Contains("too_many_clients"));
   }
   clients.pop_back();
-  REQUIRE(eventually([&] { return proto::status_info_from(clients[0]->request("status").body).clients == 3; }));
+  REQUIRE(eventually(
+      [&] { return proto::status_info_from(clients[0]->request("status").body).clients == 3; }));
   CHECK_NOTHROW(h.client());
 }
 
@@ -352,7 +379,8 @@ TEST_CASE("a client that never reads is dropped at its output limit; the others 
   CHECK(proto::status_info_from(fast->request("status").body).clients == 1);
 }
 
-TEST_CASE("clients disconnecting mid-line or mid-command do not disturb the daemon", "[daemon][faults]") {
+TEST_CASE("clients disconnecting mid-line or mid-command do not disturb the daemon",
+          "[daemon][faults]") {
   DaemonHarness h;
   {
     auto c = h.client();
@@ -360,28 +388,34 @@ TEST_CASE("clients disconnecting mid-line or mid-command do not disturb the daem
   }
   {
     auto c = h.client();
-    REQUIRE(c->request("scan.start", proto::Object().set("name", "s")).cls == proto::MessageClass::kReply);
+    REQUIRE(c->request("scan.start", proto::Object().set("name", "s")).cls ==
+            proto::MessageClass::kReply);
     h.engine().finish();
   }
   {
     // A slow job (an export) whose client is gone before the reply: the work completes.
     auto c = h.client();
-    REQUIRE(eventually([&] { return proto::status_info_from(c->request("status").body).scan.state == ScanState::kIdle; }));
+    REQUIRE(eventually([&] {
+      return proto::status_info_from(c->request("status").body).scan.state == ScanState::kIdle;
+    }));
     c->send("mesh.export", proto::Object().set("path", (h.dir() / "exports/gone.stl").string()));
     ::shutdown(c->native_handle(), SHUT_RDWR);
   }
   auto c = h.client();
   REQUIRE(eventually([&] { return std::filesystem::exists(h.dir() / "exports/gone.stl"); }));
-  REQUIRE(eventually([&] { return proto::status_info_from(c->request("status").body).clients == 1; }));
+  REQUIRE(
+      eventually([&] { return proto::status_info_from(c->request("status").body).clients == 1; }));
   CHECK(c->request("version").cls == proto::MessageClass::kReply);
 }
 
-TEST_CASE("shutting down stops the running scan through the engine and removes the socket", "[daemon]") {
+TEST_CASE("shutting down stops the running scan through the engine and removes the socket",
+          "[daemon]") {
   DaemonHarness h;
   auto w = h.client();
   w->request("watch");
   await_event(*w, "state");
-  REQUIRE(w->request("scan.start", proto::Object().set("name", "s")).cls == proto::MessageClass::kReply);
+  REQUIRE(w->request("scan.start", proto::Object().set("name", "s")).cls ==
+          proto::MessageClass::kReply);
   await_event(*w, "state");
   CHECK(h.stop() == 0);
   CHECK(h.engine().shutdowns() == 1);
@@ -403,7 +437,7 @@ TEST_CASE("state-changing commands are refused to peers that are not control use
   // scanmesh group would, but is not a control user.
   DaemonHarness h([](DaemonConfig& c) { c.socket_group = "nogroup"; });
   ::chmod(h.dir().path().c_str(), 0755);
-  struct stat st{};
+  struct stat st {};
   REQUIRE(::stat(h.socket().c_str(), &st) == 0);
   CHECK((st.st_mode & 0777) == 0660);
   // The real client, run as nobody: only async-signal-safe calls between fork and exec.
@@ -418,7 +452,8 @@ TEST_CASE("state-changing commands are refused to peers that are not control use
     if (pid == 0) {
       const int fd = ::open(out_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0666);
       if (fd < 0 || ::dup2(fd, 1) < 0 || ::dup2(fd, 2) < 0) ::_exit(126);
-      if (::setgroups(0, nullptr) != 0 || ::setgid(65534) != 0 || ::setuid(65534) != 0) ::_exit(125);
+      if (::setgroups(0, nullptr) != 0 || ::setgid(65534) != 0 || ::setuid(65534) != 0)
+        ::_exit(125);
       ::execv(argv[0], argv.data());
       ::_exit(127);
     }
@@ -430,9 +465,10 @@ TEST_CASE("state-changing commands are refused to peers that are not control use
   INFO(status_out);
   CHECK(status_rc == 0);
   CHECK_THAT(status_out, Catch::Contains("\"class\":\"REPLY\""));
-  for (std::vector<std::string> cmd : {std::vector<std::string>{"scan", "start", "--name", "x"},
-                                       std::vector<std::string>{"scan", "stop"},
-                                       std::vector<std::string>{"mesh", "export", "--path", "/tmp/x.stl"}}) {
+  for (std::vector<std::string> cmd :
+       {std::vector<std::string>{"scan", "start", "--name", "x"},
+        std::vector<std::string>{"scan", "stop"},
+        std::vector<std::string>{"mesh", "export", "--path", "/tmp/x.stl"}}) {
     const auto [rc, out] = run_as_nobody(cmd);
     INFO(out);
     CHECK(rc == 1);

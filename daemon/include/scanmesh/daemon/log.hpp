@@ -16,7 +16,9 @@ class Log {
   explicit Log(LogLevel level = LogLevel::kInfo, int fd = 2) : level_(level), fd_(fd) {}
 
   void set_level(LogLevel level) { level_ = level; }
-  bool enabled(LogLevel level) const { return static_cast<int>(level) <= static_cast<int>(level_.load()); }
+  bool enabled(LogLevel level) const {
+    return static_cast<int>(level) <= static_cast<int>(level_.load());
+  }
 
   void write(LogLevel level, std::string_view message) const;
   /// A device line: "<N>device NAME: message" (STYLE §9.1: the device name in every device line).

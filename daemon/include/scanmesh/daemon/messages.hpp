@@ -29,7 +29,7 @@ struct DeviceInfo {
   std::string driver;  ///< registered driver name ("sim" for the simulated scanner)
   std::string port;    ///< serial path, usb:VID:PID, HOST:PORT, or "" when none
   DeviceState state = DeviceState::kClosed;
-  std::string detail;  ///< why it is lost or failed; empty when ok
+  std::string detail;         ///< why it is lost or failed; empty when ok
   std::uint64_t samples = 0;  ///< samples delivered since the daemon started
   std::uint64_t errors = 0;   ///< malformed frames, timeouts, sequence gaps
 };
@@ -41,24 +41,24 @@ std::optional<ScanState> scan_state_from_string(std::string_view word);
 
 /// What the running (or last) scan has done so far.
 struct ScanCounters {
-  std::uint64_t samples = 0;        ///< sensor samples recorded in the journal (acknowledged)
-  std::uint64_t points = 0;         ///< 3D points mapped from them
-  std::uint64_t triangles = 0;      ///< triangles of the current mesh
-  std::uint64_t vertices = 0;       ///< vertices of the current mesh
+  std::uint64_t samples = 0;             ///< sensor samples recorded in the journal (acknowledged)
+  std::uint64_t points = 0;              ///< 3D points mapped from them
+  std::uint64_t triangles = 0;           ///< triangles of the current mesh
+  std::uint64_t vertices = 0;            ///< vertices of the current mesh
   std::uint64_t meshing_lag_points = 0;  ///< points recorded but not yet in the mesh
-  double meshing_lag_s = 0;         ///< that lag in seconds of scanning at the current rate
-  std::uint64_t journal_bytes = 0;  ///< size of the scan's journal
-  double rate_hz = 0;               ///< samples per second over the last second
-  std::uint64_t errors = 0;         ///< invalid samples, sequence gaps, device errors
+  double meshing_lag_s = 0;              ///< that lag in seconds of scanning at the current rate
+  std::uint64_t journal_bytes = 0;       ///< size of the scan's journal
+  double rate_hz = 0;                    ///< samples per second over the last second
+  std::uint64_t errors = 0;              ///< invalid samples, sequence gaps, device errors
 };
 
 struct ScanStatus {
   ScanState state = ScanState::kIdle;
-  std::string reason;        ///< why paused/stopped ("operator", "device_lost: NAME", ...)
-  std::int64_t id = 0;       ///< the running or last scan's catalog id, 0 when none
-  std::string name;          ///< its name
-  double elapsed_s = 0;      ///< scanning time so far (pauses excluded)
-  double progress = -1;      ///< fraction of the planned scan done, 0..1; -1 when unknown
+  std::string reason;    ///< why paused/stopped ("operator", "device_lost: NAME", ...)
+  std::int64_t id = 0;   ///< the running or last scan's catalog id, 0 when none
+  std::string name;      ///< its name
+  double elapsed_s = 0;  ///< scanning time so far (pauses excluded)
+  double progress = -1;  ///< fraction of the planned scan done, 0..1; -1 when unknown
   ScanCounters counters;
 };
 
@@ -72,8 +72,8 @@ struct ScanRecord {
   std::string stopped_utc;  ///< empty while running
   std::string reason;       ///< why it stopped or failed
   std::uint64_t samples = 0, points = 0, triangles = 0, journal_bytes = 0;
-  std::string journal;      ///< journal file path
-  Parameters parameters;    ///< what it was started with (defaults merged in)
+  std::string journal;    ///< journal file path
+  Parameters parameters;  ///< what it was started with (defaults merged in)
 };
 
 /// A mesh update, as counts (the mesh itself is fetched with mesh.export).

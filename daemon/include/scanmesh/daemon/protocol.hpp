@@ -75,8 +75,7 @@ class Object {
   Object& set(std::string_view key, bool value);
   Object& set(std::string_view key, double value);
   template <std::integral T>
-    requires(!std::same_as<T, bool>)
-  Object& set(std::string_view key, T value) {
+  requires(!std::same_as<T, bool>) Object& set(std::string_view key, T value) {
     if constexpr (std::is_signed_v<T>)
       return set_int(key, static_cast<std::int64_t>(value));
     else
@@ -111,9 +110,9 @@ class Fields {
   bool has(std::string_view key) const;
   std::vector<std::string> keys() const;
   std::optional<std::string> get_string(std::string_view key) const;
-  std::optional<std::int64_t> get_int(std::string_view key) const;  ///< integers only
+  std::optional<std::int64_t> get_int(std::string_view key) const;    ///< integers only
   std::optional<std::uint64_t> get_uint(std::string_view key) const;  ///< integers >= 0
-  std::optional<double> get_number(std::string_view key) const;   ///< any finite number
+  std::optional<double> get_number(std::string_view key) const;       ///< any finite number
   std::optional<bool> get_bool(std::string_view key) const;
   std::optional<Fields> get_object(std::string_view key) const;
   std::vector<Fields> get_objects(std::string_view key) const;  ///< array of objects; absent: {}
@@ -148,11 +147,11 @@ enum class MessageClass : std::uint8_t { kHello, kReply, kError, kEvent, kOther 
 struct Message {
   MessageClass cls = MessageClass::kOther;
   std::string class_name;
-  std::optional<std::int64_t> id;  ///< REPLY and ERROR
-  std::string cmd;                 ///< REPLY: the command answered
-  std::string event;               ///< EVENT: its name
+  std::optional<std::int64_t> id;         ///< REPLY and ERROR
+  std::string cmd;                        ///< REPLY: the command answered
+  std::string event;                      ///< EVENT: its name
   std::string error_code, error_message;  ///< ERROR
-  Fields body;                     ///< the whole object
+  Fields body;                            ///< the whole object
 };
 
 /// Decodes a server line (client side). Throws ProtocolError(invalid_json) when it is not a JSON

@@ -16,11 +16,11 @@ class Log;
 /// sd_notify(3) wrapper. Messages are sent as given; failures are ignored (systemd may be gone).
 class Notifier {
  public:
-  void ready(std::string_view status) const;      ///< READY=1 + STATUS=
-  void reloading() const;                         ///< RELOADING=1 + MONOTONIC_USEC=
-  void status(std::string_view status) const;     ///< STATUS=
-  void stopping(std::string_view status) const;   ///< STOPPING=1 + STATUS=
-  void watchdog() const;                          ///< WATCHDOG=1
+  void ready(std::string_view status) const;     ///< READY=1 + STATUS=
+  void reloading() const;                        ///< RELOADING=1 + MONOTONIC_USEC=
+  void status(std::string_view status) const;    ///< STATUS=
+  void stopping(std::string_view status) const;  ///< STOPPING=1 + STATUS=
+  void watchdog() const;                         ///< WATCHDOG=1
   void send(std::string_view text) const;
 };
 
