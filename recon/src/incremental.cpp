@@ -250,7 +250,8 @@ void IncrementalReconstructor::settle(const Eigen::AlignedBox3d& box) {
 
 MeshDelta IncrementalReconstructor::take_delta() {
   const double t0 = s_->now();
-  MeshDelta d = s_->mesh.take_delta();
+  MeshDelta d = s_->mesh.take_delta(
+      [&](std::span<const std::uint32_t> touched) { return s_->jobs.loops_through(touched); });
   if (!d.empty()) ++s_->deltas;
   s_->times.add("delta", s_->now() - t0);
   return d;
