@@ -169,6 +169,7 @@ TEST_CASE("probing a sphere through the GRBL driver", "[drivers][probe][grbl][sl
 TEST_CASE("probing a sphere through the Modbus stage driver", "[drivers][probe][modbus_stage][slow]") {
   auto map = drv::modbus_stage::leadshine_pr_map();
   map.max_speed_units_s = 1000;
+  map.default_accel_units_s2 = 20000;  // the emulated axes' own limit: quick approaches
   for (auto& a : map.axes) a.min = a.max = 0;
   auto model = std::make_shared<scanmesh::sim::ModbusStageModel>(
       scanmesh::sim::ModbusStageOptions{map, sphere_motion()});
