@@ -34,6 +34,7 @@ mcap::WriterOptions writer_options(const JournalOptions& o) {
   w.chunk_duration = o.chunk_duration;
   w.fsync_interval = o.fsync_interval;
   w.fsync_bytes = o.fsync_bytes;
+  w.writeback_bytes = o.writeback_bytes;
   return w;
 }
 

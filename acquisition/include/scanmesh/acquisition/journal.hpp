@@ -28,6 +28,8 @@ struct JournalOptions {
   std::chrono::nanoseconds chunk_duration = std::chrono::milliseconds(100);
   std::chrono::nanoseconds fsync_interval = std::chrono::seconds(1);
   std::uint64_t fsync_bytes = std::uint64_t{64} << 20;
+  /// Start the disk's writeback every this many bytes (0: leave it to the kernel).
+  std::uint64_t writeback_bytes = std::uint64_t{4} << 20;
   /// Written as the file's "scanmesh.journal" metadata record (e.g. scan_id, segment, name).
   std::map<std::string, std::string> metadata;
 
