@@ -247,6 +247,27 @@ void JournalWriter::write_parameters(drivers::Timestamp t, const nlohmann::json&
   impl_->write_json(impl_->parameters_channel, ChannelKind::kParameters, t, parameters, "kind");
 }
 
+namespace {
+
+nlohmann::json parse_record(const std::filesystem::path& file, std::string_view text,
+                            const char* what) {
+  auto j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded())
+    throw ConfigError("journal " + file.string() + ": the " + what + " is not JSON: " +
+                      std::string(text.substr(0, 80)));
+  return j;
+}
+
+}  // namespace
+
+void JournalWriter::write_event(drivers::Timestamp t, std::string_view json_text) {
+  write_event(t, parse_record(path(), json_text, "event"));
+}
+
+void JournalWriter::write_parameters(drivers::Timestamp t, std::string_view json_text) {
+  write_parameters(t, parse_record(path(), json_text, "parameters record"));
+}
+
 void JournalWriter::tick(drivers::Timestamp now) {
   impl_->writer.tick(impl_->peek_log_time(now.ns));
 }

@@ -89,6 +89,9 @@ class JournalWriter {
   /// Parameters in force from time t: a JSON object with a string "kind" ("sensor_config",
   /// "calibration", "reduction", "meshing", ...; ConfigError otherwise).
   void write_parameters(drivers::Timestamp t, const nlohmann::json& parameters);
+  /// The same from JSON text (ConfigError when it does not parse).
+  void write_event(drivers::Timestamp t, std::string_view json_text);
+  void write_parameters(drivers::Timestamp t, std::string_view json_text);
 
   /// For idle moments: writes the open chunk once it is chunk_duration old at `now`, and syncs
   /// once fsync_interval has passed, so no sample waits longer than that.
