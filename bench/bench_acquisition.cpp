@@ -34,8 +34,11 @@ struct Workload {
 StageSample stage_at(std::uint64_t k) {
   const double t = static_cast<double>(k) * 1e-3;
   const double x = std::fmod(t * 50.0, 200.0);
-  return StageSample{k, {static_cast<std::int64_t>(k) * 1'000'000},
-                     {x < 100 ? x : 200 - x, std::floor(t * 50.0 / 100.0) * 0.5, 100, 0}};
+  StageSample s;
+  s.seq = k;
+  s.t = {static_cast<std::int64_t>(k) * 1'000'000};
+  s.pose = {x < 100 ? x : 200 - x, std::floor(t * 50.0 / 100.0) * 0.5, 100, 0};
+  return s;
 }
 
 Workload point_sensor(std::size_t n) {

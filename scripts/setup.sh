@@ -16,8 +16,8 @@ PACKAGES=(
   # device layer and daemon
   libboost-dev libboost-system-dev libmodbus-dev libserialport-dev libusb-1.0-0-dev
   libsystemd-dev systemd libtomlplusplus-dev libsqlite3-dev
-  # scan journal: CRC-32 of its chunks (zlib)
-  zlib1g-dev
+  # scan journal: CRC-32 of its chunks (ISA-L's folding CRC; zlib to combine CRCs)
+  zlib1g-dev libisal-dev
   # benchmarks only: Embree, to compare the simulator's own BVH against (bench/bench_bvh)
   libembree-dev
 )

@@ -25,6 +25,14 @@ using namespace std::chrono_literals;
 
 namespace {
 
+StageSample report(std::uint64_t seq, std::int64_t t_ns, drivers::StagePose pose) {
+  StageSample s;
+  s.seq = seq;
+  s.t = {t_ns};
+  s.pose = pose;
+  return s;
+}
+
 sim::SimConfig point_scan(std::chrono::nanoseconds sensor_latency, double noise_mm) {
   sim::SimConfig c;
   c.sensor = sim::default_sensor(sim::SensorKind::kPoint);
@@ -156,8 +164,8 @@ TEST_CASE("Accumulator: invalid values counted by cause, sequence gaps as lost",
   acq::Accumulator acc;
   const auto dev = acc.add_sensor(sim::default_sensor(sim::SensorKind::kPoint), {});
   std::vector<MeasuredPoint> out;
-  acc.add_stage({0, {0}, {0, 0, 100, 0}}, out);
-  acc.add_stage({1, {1000}, {10, 0, 100, 0}}, out);
+  acc.add_stage(report(0, 0, {0, 0, 100, 0}), out);
+  acc.add_stage(report(1, 1000, {10, 0, 100, 0}), out);
   auto sample = [](std::uint64_t seq, std::int64_t t, double v, SensorStatus st) {
     SensorSample s;
     s.seq = seq;
@@ -216,11 +224,11 @@ TEST_CASE("Accumulator: pose gaps, holds and the ends of the history", "[acq]") 
   // Before the first report: held within 5 ms, else no pose.
   acc.add_sensor_samples(dev, std::vector{at(0, 990ms), at(1, 997ms)}, out);
   CHECK(out.empty());  // waits for the stage
-  acc.add_stage({0, {1000 * ms}, {0, 0, 0, 0}}, out);
+  acc.add_stage(report(0, 1000 * ms, {0, 0, 0, 0}), out);
   CHECK(out.size() == 1);
   CHECK(acc.stats().no_pose_before == 1);
-  acc.add_stage({1, {1050 * ms}, {5, 0, 0, 0}}, out);
-  acc.add_stage({2, {1300 * ms}, {30, 0, 0, 0}}, out);  // 250 ms without a report
+  acc.add_stage(report(1, 1050 * ms, {5, 0, 0, 0}), out);
+  acc.add_stage(report(2, 1300 * ms, {30, 0, 0, 0}), out);  // 250 ms without a report
   acc.add_sensor_samples(dev, std::vector{at(2, 1025ms), at(3, 1100ms), at(4, 1302ms),
                                           at(5, 1310ms)},
                          out);
@@ -244,7 +252,7 @@ TEST_CASE("Accumulator: a profile shares one pose; long scans keep a bounded his
   const std::int64_t ms = 1'000'000;
   std::uint64_t seq = 0;
   for (std::int64_t k = 0; k < 200000; ++k) {  // 200 s of stage reports at 1 kHz
-    acc.add_stage({static_cast<std::uint64_t>(k), {k * ms}, {static_cast<double>(k) * 0.01, 0, 100, 0}},
+    acc.add_stage(report(static_cast<std::uint64_t>(k), k * ms, {static_cast<double>(k) * 0.01, 0, 100, 0}),
                   out);
     if (k % 100 == 50) {
       std::vector<SensorSample> profile(50);

@@ -176,8 +176,10 @@ TEST_CASE("probing a sphere through the Modbus stage driver", "[drivers][probe][
   scanmesh::sim::ModbusTcpEmulator emulator(nullptr, {}, 1, 0);
   emulator.set_handler(model);
   emulator.start();
-  drv::modbus_stage::Device stage(scanmesh::test::fast_stage_options("modbus-probe"),
-                                  scanmesh::test::tcp_modbus_factory("modbus-probe", emulator.port(), 150ms),
+  // Reply timeouts generous for a loaded machine: 50 probes make hundreds of polls, and a run
+  // of timeouts would count the stage as lost in the middle of a move.
+  drv::modbus_stage::Device stage(scanmesh::test::fast_stage_options("modbus-probe", 1000ms),
+                                  scanmesh::test::tcp_modbus_factory("modbus-probe", emulator.port(), 1000ms),
                                   map);
   stage.open();
   stage.start({});

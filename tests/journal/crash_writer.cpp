@@ -4,7 +4,7 @@
 // what had been acknowledged. On a write error it prints the last count, the error on stderr,
 // and exits 3; with --catalog it records the scan there and, on the error, marks it failed with
 // the error as the reason.
-// Usage: journal_crash_writer FILE [--ms N] [--quiet] [--catalog DB]
+// Usage: journal_crash_writer FILE [--ms N] [--quiet] [--catalog DB] [--chunk-bytes N]
 // SPDX-License-Identifier: MIT
 #include <unistd.h>
 
@@ -40,11 +40,14 @@ int main(int argc, char** argv) {
   long long max_ms = -1;
   bool quiet = false;
   std::string catalog_file;
+  acq::JournalOptions options;
   for (int i = 2; i < argc; ++i) {
     if (std::strcmp(argv[i], "--ms") == 0 && i + 1 < argc) {
       max_ms = std::atoll(argv[++i]);
     } else if (std::strcmp(argv[i], "--quiet") == 0) {
       quiet = true;
+    } else if (std::strcmp(argv[i], "--chunk-bytes") == 0 && i + 1 < argc) {
+      options.chunk_bytes = static_cast<std::size_t>(std::atoll(argv[++i]));
     } else if (std::strcmp(argv[i], "--catalog") == 0 && i + 1 < argc) {
       catalog_file = argv[++i];
     }
@@ -59,7 +62,7 @@ int main(int argc, char** argv) {
       catalog.emplace(acq::Catalog::open(catalog_file, now));
       scan_id = catalog->create_scan({"crash writer", file, {}, {}, {}, {}}, now);
     }
-    w = std::make_unique<acq::JournalWriter>(file);
+    w = std::make_unique<acq::JournalWriter>(file, options);
     say("open");
     const test::Scenario sc;
     const auto channels = test::begin_scenario(*w);
@@ -78,7 +81,7 @@ int main(int argc, char** argv) {
     say("acked " + std::to_string(acked));
     std::fprintf(stderr, "%s\n", e.what());
     if (catalog)
-      catalog->finish(scan_id, acq::ScanState::kFailed, e.what(), acked, 0,
+      catalog->finish(scan_id, acq::CatalogState::kFailed, e.what(), acked, 0,
                       std::chrono::system_clock::now());
     return 3;
   }

@@ -98,7 +98,9 @@ inline Item pose_item(const std::string& topic, std::uint64_t seq, drv::Timestam
                       const drv::StagePose& p) {
   Item it;
   it.topic = topic;
-  it.stage = {seq, t, p};
+  it.stage.seq = seq;
+  it.stage.t = t;
+  it.stage.pose = p;
   return it;
 }
 inline Item json_item(const std::string& topic, const nlohmann::json& j, std::int64_t t) {

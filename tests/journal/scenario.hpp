@@ -38,8 +38,13 @@ inline Step scenario_step(const Scenario& sc, int ms) {
     s.line.push_back(sensor_sample(1, static_cast<std::uint64_t>(ms) * sc.profile_points + k,
                                    sc.profile_points, true, kScenarioT0, 1'000'000));
   s.stage = stage_sample(static_cast<std::uint64_t>(ms), kScenarioT0);
-  if (ms % 200 == 100)
-    s.probe = drivers::ProbeTrigger{static_cast<std::uint64_t>(ms / 200), s.stage.t, s.stage.pose};
+  if (ms % 200 == 100) {
+    drivers::ProbeTrigger g;
+    g.seq = static_cast<std::uint64_t>(ms / 200);
+    g.t = s.stage.t;
+    g.pose = s.stage.pose;
+    s.probe = g;
+  }
   return s;
 }
 

@@ -299,6 +299,9 @@ TEST_CASE("Bad arguments are refused with the file's name", "[acq][journal]") {
                       Catch::Contains("string \"event\""));
     CHECK_THROWS_WITH(w.write_parameters({0}, nlohmann::json::array()),
                       Catch::Contains("string \"kind\""));
+    CHECK_THROWS_WITH(w.write_event({0}, std::string_view("{\"event\": ")),
+                      Catch::Contains("not JSON"));
+    w.write_event({0}, std::string_view(R"({"event": "started"})"));
     CHECK_THROWS_WITH(w.write_stage(acq::StageChannel{s.id}, {}),
                       Catch::Contains("not one of this journal's stage channels"));
   }

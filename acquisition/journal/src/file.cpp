@@ -194,6 +194,14 @@ int File::truncate(std::uint64_t size) noexcept {
   return 0;
 }
 
+int File::start_writeback(std::uint64_t offset, std::uint64_t length) noexcept {
+  while (::sync_file_range(fd_, static_cast<off_t>(offset), static_cast<off_t>(length),
+                           SYNC_FILE_RANGE_WRITE) != 0) {
+    if (errno != EINTR) return errno;
+  }
+  return 0;
+}
+
 int File::datasync() noexcept {
   while (::fdatasync(fd_) != 0) {
     if (errno != EINTR) return errno;

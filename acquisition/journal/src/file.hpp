@@ -55,6 +55,9 @@ class File {
   [[nodiscard]] int seek(std::uint64_t offset) noexcept;
   /// ftruncate; returns 0 or errno.
   [[nodiscard]] int truncate(std::uint64_t size) noexcept;
+  /// Starts writeback of a range to the disk without waiting for it (sync_file_range with
+  /// SYNC_FILE_RANGE_WRITE), so a later fdatasync has little left to wait for. Returns 0 or errno.
+  [[nodiscard]] int start_writeback(std::uint64_t offset, std::uint64_t length) noexcept;
   /// fdatasync; returns 0 or errno.
   [[nodiscard]] int datasync() noexcept;
   /// Whether another open file description holds an flock on the file (a writer at work).

@@ -34,6 +34,7 @@ mcap::WriterOptions writer_options(const JournalOptions& o) {
   w.chunk_duration = o.chunk_duration;
   w.fsync_interval = o.fsync_interval;
   w.fsync_bytes = o.fsync_bytes;
+  w.writeback_bytes = o.writeback_bytes;
   return w;
 }
 
@@ -122,9 +123,17 @@ struct JournalWriter::Impl {
     const mcap::MessageHeader h{id, sequence[id]++, log_time(t.ns), non_negative(t.ns)};
     auto out = writer.add_message(h, kPoseMessageBytes, 1);
     if (probe) {
-      encode_probe(drivers::ProbeTrigger{seq, t, pose}, out.data());
+      drivers::ProbeTrigger g;
+      g.seq = seq;
+      g.t = t;
+      g.pose = pose;
+      encode_probe(g, out.data());
     } else {
-      encode_stage(drivers::StageSample{seq, t, pose}, out.data());
+      drivers::StageSample s;
+      s.seq = seq;
+      s.t = t;
+      s.pose = pose;
+      encode_stage(s, out.data());
     }
     ++written;
     writer.flush_if_due();
@@ -244,6 +253,27 @@ void JournalWriter::write_event(drivers::Timestamp t, const nlohmann::json& even
 
 void JournalWriter::write_parameters(drivers::Timestamp t, const nlohmann::json& parameters) {
   impl_->write_json(impl_->parameters_channel, ChannelKind::kParameters, t, parameters, "kind");
+}
+
+namespace {
+
+nlohmann::json parse_record(const std::filesystem::path& file, std::string_view text,
+                            const char* what) {
+  auto j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded())
+    throw ConfigError("journal " + file.string() + ": the " + what + " is not JSON: " +
+                      std::string(text.substr(0, 80)));
+  return j;
+}
+
+}  // namespace
+
+void JournalWriter::write_event(drivers::Timestamp t, std::string_view json_text) {
+  write_event(t, parse_record(path(), json_text, "event"));
+}
+
+void JournalWriter::write_parameters(drivers::Timestamp t, std::string_view json_text) {
+  write_parameters(t, parse_record(path(), json_text, "parameters record"));
 }
 
 void JournalWriter::tick(drivers::Timestamp now) {

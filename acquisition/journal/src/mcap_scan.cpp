@@ -268,7 +268,9 @@ class Scanner {
   /// follows. Strict: throws when one follows (damage in the middle).
   std::optional<std::uint64_t> skip_damage(std::uint64_t pos, std::string what) {
     damage(pos, what);
-    auto next = resync(pos + 1);
+    // A record cannot start inside the nine bytes read as this one's opcode and length (and a
+    // damaged region must be long enough for recover to wrap it in a record of its own).
+    auto next = resync(pos + kRecordPrefix);
     if (next) {
       close_damage(*next);
       if (options_.strict) fail_strict(what + " at " + at(pos));

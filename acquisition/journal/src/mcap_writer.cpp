@@ -71,6 +71,7 @@ struct Writer::Impl {
   std::atomic<std::uint64_t> durable{0};
   std::uint64_t acked_plain = 0;
   std::uint64_t bytes_since_sync = 0;
+  std::uint64_t writeback_from = 0;  // first byte whose writeback has not been started
   std::uint64_t last_sync_time = 0;
   bool sync_time_set = false;
   WriterStats stats;
@@ -145,6 +146,11 @@ struct Writer::Impl {
 
   void maybe_sync(std::uint64_t now) {
     if (bytes_since_sync == 0) return;
+    if (opt.writeback_bytes > 0 && offset - writeback_from >= opt.writeback_bytes) {
+      if (const int e = file.start_writeback(writeback_from, offset - writeback_from); e != 0)
+        fail(e, "sync_file_range", false);
+      writeback_from = offset;
+    }
     if (!sync_time_set) {
       last_sync_time = now;
       sync_time_set = true;

@@ -28,6 +28,8 @@ struct JournalOptions {
   std::chrono::nanoseconds chunk_duration = std::chrono::milliseconds(100);
   std::chrono::nanoseconds fsync_interval = std::chrono::seconds(1);
   std::uint64_t fsync_bytes = std::uint64_t{64} << 20;
+  /// Start the disk's writeback every this many bytes (0: leave it to the kernel).
+  std::uint64_t writeback_bytes = std::uint64_t{4} << 20;
   /// Written as the file's "scanmesh.journal" metadata record (e.g. scan_id, segment, name).
   std::map<std::string, std::string> metadata;
 
@@ -87,6 +89,9 @@ class JournalWriter {
   /// Parameters in force from time t: a JSON object with a string "kind" ("sensor_config",
   /// "calibration", "reduction", "meshing", ...; ConfigError otherwise).
   void write_parameters(drivers::Timestamp t, const nlohmann::json& parameters);
+  /// The same from JSON text (ConfigError when it does not parse).
+  void write_event(drivers::Timestamp t, std::string_view json_text);
+  void write_parameters(drivers::Timestamp t, std::string_view json_text);
 
   /// For idle moments: writes the open chunk once it is chunk_duration old at `now`, and syncs
   /// once fsync_interval has passed, so no sample waits longer than that.

@@ -110,6 +110,9 @@ struct WriterOptions {
   std::chrono::nanoseconds fsync_interval = std::chrono::seconds(1);
   /// ... or once this many bytes were written since the last one. 0 in both: never (only close).
   std::uint64_t fsync_bytes = std::uint64_t{64} << 20;
+  /// Start the disk's writeback of every this many bytes written (sync_file_range), so that
+  /// writing and the disk overlap and an fdatasync finds little left to do. 0: never.
+  std::uint64_t writeback_bytes = std::uint64_t{4} << 20;
   std::string profile = "x-scanmesh";
   std::string library = "scanmesh journal 1";
 

@@ -84,7 +84,7 @@ struct StageSample {
   std::uint64_t seq = 0;  ///< per stage, +1 per report
   Timestamp t;            ///< host monotonic time of the position (when the report arrived)
   StagePose pose;
-  std::optional<Timestamp> t_device;      ///< the controller's own clock, if it reports one
+  std::optional<Timestamp> t_device{};    ///< the controller's own clock, if it reports one
   StageStatus status = StageStatus::kIdle;  ///< what the stage was doing at that report
 };
 
@@ -104,8 +104,8 @@ struct ProbeTrigger {
   std::uint64_t seq = 0;
   Timestamp t;  ///< host monotonic time of the latch
   StagePose pose;  ///< the latched axes: the probe tip centre at contact (machine frame)
-  std::optional<Timestamp> t_device;    ///< the controller's clock at the latch, if it has one
-  std::optional<SurfacePoint> surface;  ///< the controller's own compensated point, if it gives one
+  std::optional<Timestamp> t_device{};    ///< the controller's clock at the latch, if it has one
+  std::optional<SurfacePoint> surface{};  ///< the controller's own compensated point, if it gives one
 };
 
 }  // namespace scanmesh::drivers
