@@ -411,7 +411,8 @@ TEST_CASE("grbl driver: the emulator's axes follow an external trajectory", "[dr
   };
   b.emulator.motion().follow(path, t0 + 400ms);
   const std::size_t first = b.collector.count();
-  REQUIRE(scanmesh::test::wait_until([&] { return b.device.wait_idle(50ms).pose.x_mm > 3.9; }));
+  // The path ends at x = 4 (400 ms at 10 mm/s): wait for a report of the end.
+  REQUIRE(scanmesh::test::wait_until([&] { return b.device.wait_idle(50ms).pose.x_mm > 3.9995; }));
   const auto samples = b.collector.copy();
   int checked = 0;
   for (std::size_t k = first; k < samples.size(); ++k) {

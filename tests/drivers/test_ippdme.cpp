@@ -92,7 +92,9 @@ TEST_CASE("ippdme codec: numbers and command lines", "[drivers][ippdme]") {
   CHECK((ipp::parse_number("-12.5", v) && v == -12.5));
   CHECK((ipp::parse_number("1E3", v) && v == 1000));
   CHECK((ipp::parse_number(".5", v) && v == 0.5));  // NUMBER: [+-]?(\d+\.?\d*|\.\d+)
-  CHECK_FALSE(ipp::parse_number("1e1000", v));   // exponents have at most 3 digits... and overflow
+  CHECK_FALSE(ipp::parse_number("1e1000", v));   // exponents have at most 3 digits
+  CHECK_FALSE(ipp::parse_number("0E073709551615", v));  // a long exponent (a fuzzer's find)
+  CHECK_FALSE(ipp::parse_number("1e999", v));    // overflows: not finite
   CHECK(ipp::format_number(10.0) == "10");
   CHECK(ipp::format_number(-0.125) == "-0.125");
   CHECK(ipp::command_line({false, 12}, "GoTo(X(1), Y(2))") == "00012 GoTo(X(1), Y(2))\r\n");

@@ -93,7 +93,9 @@ void probe_sphere(drv::MotionStage& stage) {
     q.approach_feed_mm_min = 60000;
     // Around the sphere, not through it: up to the safe height, over, then down to the start.
     stage.move_to({std::nullopt, std::nullopt, 40.0, std::nullopt}, 60000);
+    REQUIRE(stage.wait_idle(10s).status == drv::StageStatus::kIdle);
     stage.move_to({from.x(), from.y(), std::nullopt, std::nullopt}, 60000);
+    REQUIRE(stage.wait_idle(10s).status == drv::StageStatus::kIdle);
     const drv::ProbePoint p = drv::probe_point(stage, q);
     REQUIRE(p.outcome == drv::ProbePoint::Outcome::kPoint);
     CHECK(p.travel_mm == Approx(3.0).margin(0.05));
@@ -158,6 +160,7 @@ TEST_CASE("probing a sphere through the GRBL driver", "[drivers][probe][grbl][sl
     q.feed_mm_min = 3000;
     q.approach_feed_mm_min = 60000;
     stage.move_to({std::nullopt, std::nullopt, 40.0, std::nullopt}, 60000);
+    stage.wait_idle(10s);
     CHECK(drv::probe_point(stage, q).outcome == drv::ProbePoint::Outcome::kNoContact);
   }
   drv::ProbeRequest no_direction;

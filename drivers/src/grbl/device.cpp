@@ -195,10 +195,9 @@ ProbeMoveResult Device::probe_move(const ProbeMove& move) {
   if (move.k != 0) w.z = move.k * s;
   const std::string line = probe_line(w, checked_feed(move.feed_mm_min, "probe"));
   // The `ok` of G38.2 comes when the probing move has ended.
-  const auto travel_time = std::chrono::milliseconds(
-      static_cast<std::int64_t>(move.travel_mm / move.feed_mm_min * 60000.0 * 2));
+  const auto travel = travel_time(move.travel_mm, move.feed_mm_min, 2);
   ProbeMoveResult r = call<ProbeMoveResult>(
-      "G38.2", options().homing_timeout + travel_time, [this, line](auto promise) {
+      "G38.2", options().homing_timeout + travel, [this, line](auto promise) {
         last_probe_.reset();
         last_alarm_ = 0;
         Line l;

@@ -174,8 +174,11 @@ bool parse_number(std::string_view t, double& out) {
     bool neg_exp = false;
     if (i < t.size() && (t[i] == '+' || t[i] == '-')) neg_exp = t[i++] == '-';
     int n = 0, e = 0;
-    for (; i < t.size() && digit(t[i]); ++i, ++n) e = e * 10 + (t[i] - '0');
-    if (n == 0 || n > 3 || i != t.size()) return false;
+    for (; i < t.size() && digit(t[i]); ++i, ++n) {
+      if (n == 3) return false;  // at most 3 exponent digits (and no int overflow; a fuzzer found it)
+      e = e * 10 + (t[i] - '0');
+    }
+    if (n == 0 || i != t.size()) return false;
     exponent = neg_exp ? -e : e;
   }
   static constexpr double kPow10[] = {1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9,

@@ -461,8 +461,7 @@ ProbeMoveResult Device::probe_move(const ProbeMove& m) {
                        format_number(m.feed_mm_min / 60) + "))",
                    Kind::kPlain, true, options().timeout * 4);
   const auto limit = options().timeout * 8 +
-                     std::chrono::milliseconds(static_cast<std::int64_t>(
-                         m.travel_mm / m.feed_mm_min * 60000.0 * 4)) +
+                     travel_time(m.travel_mm, m.feed_mm_min, 4) +
                      std::chrono::seconds(2);
   ProbeMoveResult result = call<ProbeMoveResult>("PtMeas", limit, [this, d, half](auto promise) {
     // The nominal point lies half the travel ahead; IJK points from the surface to the probe.

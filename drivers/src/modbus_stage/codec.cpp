@@ -171,6 +171,12 @@ std::vector<ReadBlock> plan_reads(const StageRegisterMap& map, int max_gap) {
     }
     blocks.push_back({r.address, static_cast<std::uint16_t>(end - r.address)});
   }
+  // The status word is read first: the requests of one poll are not atomic, and a position read
+  // after a status saying "stopped" is the final one (read before it, it could be a moment old
+  // while the status already says the axis stands).
+  std::stable_partition(blocks.begin(), blocks.end(), [&](const ReadBlock& b) {
+    return map.status.address >= b.address && map.status.address < b.address + b.count;
+  });
   return blocks;
 }
 

@@ -236,6 +236,7 @@ std::vector<double> Device::targets_of(const StageTarget& t, bool relative) cons
 
 std::vector<std::size_t> Device::start_moves(const std::vector<double>& targets,
                                              double feed_per_min) {
+  poll_axes();  // the shares below need where the axes are now, not at the last poll
   // Quirk: separate drives cannot interpolate; each linear axis gets its share of the feed and of
   // the acceleration, so that all of them run one normalised profile and the tool moves straight.
   double length = 0;
@@ -281,7 +282,8 @@ void Device::move_by(const StageTarget& delta, double feed_mm_min) {
   StageTarget d = delta;
   call<void>("move", options().timeout * 4, [this, d, feed_mm_min](auto done) {
     try {
-      // Relative to the latest positions the worker read (not to a stale caller's copy).
+      // Relative to where the axes are now (not to a stale caller's copy).
+      poll_axes();
       start_moves(targets_of(d, true), feed_mm_min);
       done->set_value();
     } catch (...) {
@@ -359,8 +361,7 @@ ProbeMoveResult Device::run_probe(const ProbeMove& m) {
   }
   start_moves(targets, m.feed_mm_min);
   const auto deadline = Clock::now() + options().timeout * 4 +
-                        std::chrono::milliseconds(static_cast<std::int64_t>(
-                            m.travel_mm / m.feed_mm_min * 60000.0 * 3));
+                        travel_time(m.travel_mm, m.feed_mm_min, 3);
   for (;;) {
     // The probing move is polled at the report rate; the drives latch in hardware, so the rate
     // bounds only how soon the driver learns of the trigger, not its accuracy.
@@ -420,9 +421,7 @@ ProbeMoveResult Device::probe_move(const ProbeMove& move) {
     throw ConfigError(name() + ": probe: travel and feed must be > 0");
   if (map_.probe_arm.empty())
     throw ConfigError(name() + ": profile " + map_.profile + " has no probe registers");
-  const auto limit = options().timeout * 8 +
-                     std::chrono::milliseconds(static_cast<std::int64_t>(
-                         move.travel_mm / move.feed_mm_min * 60000.0 * 4));
+  const auto limit = options().timeout * 8 + travel_time(move.travel_mm, move.feed_mm_min, 4);
   return call<ProbeMoveResult>("probe", limit, [this, move](auto promise) {
     try {
       promise->set_value(run_probe(move));

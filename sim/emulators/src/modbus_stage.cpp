@@ -115,12 +115,12 @@ void ModbusStageModel::check_probe(Timestamp now) {
   }
   // Every drive latches on the shared probe signal and stops there.
   const StagePose at = combined(hi);
-  std::normal_distribution<double> noise(0.0, options_.motion.probe.noise_mm);
+  const double sigma = options_.motion.probe.noise_mm;
   for (auto& a : axes_) {
     a.motion->abort(hi);
     if (!a.armed) continue;
     double v = component(at, a.map.axis);
-    if (options_.motion.probe.noise_mm > 0 && a.map.axis != StageAxis::kA) v += noise(rng_);
+    if (sigma > 0 && a.map.axis != StageAxis::kA) v += std::normal_distribution<double>(0.0, sigma)(rng_);
     a.latched = true;
     a.latched_counts = std::llround(v * a.map.counts_per_unit);
   }

@@ -29,6 +29,14 @@
 
 namespace scanmesh::drivers {
 
+/// factor times the time a move of travel_mm takes at feed_mm_min, bounded to 10^9 ms (a
+/// nonsensical feed cannot overflow a deadline).
+inline std::chrono::milliseconds travel_time(double travel_mm, double feed_mm_min, double factor) {
+  const double ms = travel_mm / feed_mm_min * 60000.0 * factor;
+  return std::chrono::milliseconds(
+      static_cast<std::int64_t>(ms >= 0 && ms < 1e9 ? ms : (ms >= 1e9 ? 1e9 : 0)));
+}
+
 class StageBase : public DeviceLifecycle<MotionStage, StageCallbacks, StageOptions> {
  public:
   StageStatusReport status() const override;

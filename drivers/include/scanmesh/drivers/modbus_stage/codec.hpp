@@ -142,7 +142,8 @@ struct ReadBlock {
   std::uint16_t count = 0;
 };
 /// Plans the reads of position, status and alarm (not the probe latch), merging refs up to
-/// `max_gap` unused registers apart.
+/// `max_gap` unused registers apart; the block holding the status word comes first (a position
+/// read after a "stopped" status is final).
 std::vector<ReadBlock> plan_reads(const StageRegisterMap& map, int max_gap = 8);
 /// Decodes one axis from the registers of plan_reads() concatenated in order. Pure, no
 /// allocation.
