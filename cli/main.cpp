@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   cli::add_generate_command(app, run);
   cli::add_simulate_command(app, run);
   cli::add_devices_command(app, run);
+  cli::add_profiler_command(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
