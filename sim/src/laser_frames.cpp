@@ -303,55 +303,85 @@ cv::Mat render_chessboard(const CameraModel& camera, const Eigen::Isometry3d& ca
   check_camera(camera);
   if (board.cols < 2 || board.rows < 2 || !(board.square_mm > 0) || board.margin_mm < 0)
     throw ConfigError("chessboard: at least 2 x 2 inner corners and square_mm > 0 required");
+  const int w = camera.width, h = camera.height;
   const Vec3 origin = camera_from_board.translation();
   const Vec3 normal = camera_from_board.linear().col(2);
   const Eigen::Matrix3d board_from_camera = camera_from_board.linear().transpose();
   const double sq = board.square_mm;
-  const double x_lo = -sq - board.margin_mm, x_hi = board.cols * sq + board.margin_mm;
-  const double y_lo = -sq - board.margin_mm, y_hi = board.rows * sq + board.margin_mm;
   Vec3 laser_normal{0, 0, 0};
   if (laser) laser_normal = laser->normal.normalized();
-  const int s = std::max(1, look.supersample);
-  cv::Mat ambient(camera.height, camera.width, CV_64F), light(camera.height, camera.width, CV_64F);
-  for (int v = 0; v < camera.height; ++v) {
-    for (int u = 0; u < camera.width; ++u) {
-      double a = 0, l = 0;
-      for (int i = 0; i < s; ++i) {
-        for (int j = 0; j < s; ++j) {
-          const double su = u - 0.5 + (i + 0.5) / s;
-          const double sv = v - 0.5 + (j + 0.5) / s;
-          const Vec3 ray = camera.ray(su, sv);
-          const double den = normal.dot(ray);
-          const double t = std::abs(den) > 1e-12 ? normal.dot(origin) / den : -1;
-          if (!(t > 0)) {
-            a += look.background;
-            continue;
-          }
-          const Vec3 p = ray * t;
-          const Vec3 q = board_from_camera * (p - origin);
-          if (q.x() < x_lo || q.x() > x_hi || q.y() < y_lo || q.y() > y_hi) {
-            a += look.background;
-            continue;
-          }
-          double albedo = board.white;
-          if (q.x() >= -sq && q.x() < board.cols * sq && q.y() >= -sq && q.y() < board.rows * sq) {
-            const auto ix = static_cast<long>(std::floor(q.x() / sq));
-            const auto iy = static_cast<long>(std::floor(q.y() / sq));
-            if (((ix + iy) & 1) == 0) albedo = board.black;
-          }
-          const double level = look.ambient * (1 + look.ambient_gradient * (su / (camera.width - 1) - 0.5));
-          a += albedo * level;
-          if (laser) {
-            const double d = laser_normal.dot(p - laser->origin) / laser->sigma_mm;
-            if (std::abs(d) <= kLaserReach) {
-              const double cos_in = std::abs(normal.dot((p - laser->origin).normalized()));
-              l += laser->power * albedo * cos_in * std::exp(-0.5 * d * d);
-            }
-          }
+
+  // Board coordinates (x, y) of every pixel centre's ray, NaN where it misses the board plane.
+  cv::Mat q(h, w, CV_64FC2);
+  cv::Mat points(h, w, CV_64FC3);
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const Vec3 ray = camera.ray(u, v);
+      const double den = normal.dot(ray);
+      const double t = std::abs(den) > 1e-12 ? normal.dot(origin) / den : -1;
+      if (!(t > 0)) {
+        q.at<cv::Vec2d>(v, u) = cv::Vec2d(kNaN, kNaN);
+        continue;
+      }
+      const Vec3 p = ray * t;
+      const Vec3 b = board_from_camera * (p - origin);
+      q.at<cv::Vec2d>(v, u) = cv::Vec2d(b.x(), b.y());
+      points.at<cv::Vec3d>(v, u) = cv::Vec3d(p.x(), p.y(), p.z());
+    }
+  }
+  // Anti-aliasing without sampling: each edge covers the pixel by the fraction its distance in
+  // pixels gives (a one-pixel box across the edge), from the local derivatives of the board
+  // coordinates; the checker is the XOR of the two axes' smoothed parities. Unbiased corners.
+  const auto coverage = [](double d_px) { return std::clamp(0.5 + d_px, 0.0, 1.0); };
+  // Smoothed indicator of [lo, hi] along one board axis; g: mm per pixel across it.
+  const auto inside = [&](double x, double lo, double hi, double g) {
+    return coverage((x - lo) / g) * coverage((hi - x) / g);
+  };
+  // Smoothed parity of floor(x / sq): 1 on odd cells.
+  const auto parity = [&](double x, double g) {
+    const double k = std::round(x / sq);  // the nearest edge, between cells k-1 and k
+    const double c = coverage((x - k * sq) / g);
+    const double before = std::fmod(std::abs(k - 1), 2.0);
+    const double after = std::fmod(std::abs(k), 2.0);
+    return before * (1 - c) + after * c;
+  };
+  cv::Mat ambient(h, w, CV_64F), light(h, w, CV_64F, cv::Scalar(0));
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const cv::Vec2d& c = q.at<cv::Vec2d>(v, u);
+      const cv::Vec2d& cu = q.at<cv::Vec2d>(v, std::min(u + 1, w - 1));
+      const cv::Vec2d& cu0 = q.at<cv::Vec2d>(v, std::max(u - 1, 0));
+      const cv::Vec2d& cv1 = q.at<cv::Vec2d>(std::min(v + 1, h - 1), u);
+      const cv::Vec2d& cv0 = q.at<cv::Vec2d>(std::max(v - 1, 0), u);
+      const double level = look.ambient * (1 + look.ambient_gradient * (double(u) / (w - 1) - 0.5));
+      if (std::isnan(c[0]) || std::isnan(cu[0]) || std::isnan(cu0[0]) || std::isnan(cv1[0]) ||
+          std::isnan(cv0[0])) {
+        ambient.at<double>(v, u) = look.background;
+        continue;
+      }
+      const double su = (u + 1 < w ? 1 : 0) + (u > 0 ? 1 : 0);
+      const double sv = (v + 1 < h ? 1 : 0) + (v > 0 ? 1 : 0);
+      const cv::Vec2d du = (cu - cu0) / su, dv = (cv1 - cv0) / sv;  // board mm per pixel
+      const double gx = std::max(1e-9, std::hypot(du[0], dv[0]));
+      const double gy = std::max(1e-9, std::hypot(du[1], dv[1]));
+      const double on_board = inside(c[0], -sq - board.margin_mm, board.cols * sq + board.margin_mm, gx) *
+                              inside(c[1], -sq - board.margin_mm, board.rows * sq + board.margin_mm, gy);
+      const double on_squares = inside(c[0], -sq, board.cols * sq, gx) *
+                                inside(c[1], -sq, board.rows * sq, gy);
+      const double px = parity(c[0], gx), py = parity(c[1], gy);
+      const double black = on_squares * (px * py + (1 - px) * (1 - py));  // (ix + iy) even
+      const double albedo = board.white - (board.white - board.black) * black;
+      ambient.at<double>(v, u) = on_board * albedo * level + (1 - on_board) * look.background;
+      if (laser) {
+        const cv::Vec3d& pc = points.at<cv::Vec3d>(v, u);
+        const Vec3 p(pc[0], pc[1], pc[2]);
+        const double d = laser_normal.dot(p - laser->origin) / laser->sigma_mm;
+        if (std::abs(d) <= kLaserReach) {
+          const double cos_in = std::abs(normal.dot((p - laser->origin).normalized()));
+          light.at<double>(v, u) =
+              on_board * laser->power * albedo * cos_in * std::exp(-0.5 * d * d);
         }
       }
-      ambient.at<double>(v, u) = a / (s * s);
-      light.at<double>(v, u) = l / (s * s);
     }
   }
   return finish(ambient, light, look);

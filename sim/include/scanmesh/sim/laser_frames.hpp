@@ -85,10 +85,11 @@ struct ChessboardTarget {
   double white = 0.85;
 };
 
-/// Renders the chessboard at `camera_from_board` (supersampled everywhere, so its edges are
-/// anti-aliased as a real lens and sensor make them), optionally with a laser sheet on it.
-/// The mesh-less parts of `look` apply: ambient (on white: ambient * white), gradient,
-/// background, speckle, noise, blur, seed.
+/// Renders the chessboard at `camera_from_board`, optionally with a laser sheet on it. Its
+/// edges are anti-aliased exactly for straight edges (each edge covers a pixel by the fraction
+/// its distance in pixels gives), so corners carry no sampling bias. The mesh-less parts of
+/// `look` apply: ambient (on white: ambient * white), gradient, background, speckle, noise,
+/// blur, seed (not supersample).
 cv::Mat render_chessboard(const CameraModel& camera, const Eigen::Isometry3d& camera_from_board,
                           const ChessboardTarget& board, const FrameLook& look,
                           const LaserSheet* laser = nullptr);
