@@ -50,6 +50,10 @@ void add_extraction_options(CLI::App& cmd, ExtractionArgs& a) {
   cmd.add_option("--max-width", a.options.max_width_px,
                  "widest line in pixels; wider is a blob (default 16)")
       ->check(CLI::Range(2, 255));
+  cmd.add_option("--trim-ends", a.options.trim_ends,
+                 "values dropped at each end of a run of columns before a gap, where the line "
+                 "falls off an edge (default 2)")
+      ->check(CLI::Range(0, 16));
 }
 
 prof::ExtractionOptions extraction_options(const ExtractionArgs& a) {

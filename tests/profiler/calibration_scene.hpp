@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "profiler/scene.hpp"
+#include "scanmesh/drivers/profiler/calibration.hpp"
 #include "scanmesh/sim/laser_frames.hpp"
 
 namespace scanmesh::test {
@@ -111,6 +112,46 @@ inline sim::FrameLook laser_board_look(std::uint64_t seed) {
   look.blur_px = 0.6;
   look.seed = seed;
   return look;
+}
+
+inline drivers::profiler::ChessboardSpec calibration_spec() {
+  return drivers::profiler::ChessboardSpec{cv::Size(9, 6), 10};
+}
+
+/// The rendered calibration images and the camera calibrated from them (made once per test
+/// program).
+struct RenderedCalibration {
+  sim::CameraModel truth = profiler_camera();
+  sim::LaserSheet laser = profiler_laser(150);
+  sim::ChessboardTarget board = calibration_board();
+  std::vector<drivers::profiler::NamedImage> boards;  ///< camera views, laser poses included
+  std::vector<drivers::profiler::NamedImage> lasers;  ///< laser on the boards, with laser-off
+                                                      ///< images
+  drivers::profiler::CameraCalibrationResult camera;
+
+  RenderedCalibration() {
+    std::uint64_t seed = 100;
+    auto views = camera_poses(board);
+    const auto at_laser = laser_poses(board);
+    views.insert(views.end(), at_laser.begin(), at_laser.end());
+    for (const auto& v : views)
+      boards.push_back({v.name,
+                        sim::render_chessboard(truth, v.camera_from_board, board,
+                                               board_look(seed++)),
+                        {}});
+    for (const auto& v : at_laser)
+      lasers.push_back({v.name,
+                        sim::render_chessboard(truth, v.camera_from_board, board,
+                                               laser_board_look(seed++), &laser),
+                        sim::render_chessboard(truth, v.camera_from_board, board,
+                                               laser_board_look(seed++))});
+    camera = drivers::profiler::calibrate_camera(boards, calibration_spec(), "boards/");
+  }
+};
+
+inline const RenderedCalibration& rendered_calibration() {
+  static const RenderedCalibration r;
+  return r;
 }
 
 }  // namespace scanmesh::test

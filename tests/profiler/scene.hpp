@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include "scanmesh/drivers/profiler/camera.hpp"
 #include "scanmesh/sim/bvh.hpp"
 #include "scanmesh/sim/laser_frames.hpp"
 #include "scanmesh/sim/parts.hpp"
@@ -81,6 +82,24 @@ inline sim::FrameLook noisy_look(std::uint64_t seed = 7) {
   look.blur_px = 0.7;
   look.seed = seed;
   return look;
+}
+
+/// The true calibration of the rendered profiler (camera and sheet) in the profiler's terms.
+inline drivers::profiler::ProfilerCalibration true_calibration(const sim::CameraModel& c,
+                                                               const sim::LaserSheet& s) {
+  drivers::profiler::ProfilerCalibration cal;
+  cal.camera.size = cv::Size(c.width, c.height);
+  cal.camera.matrix = cv::Matx33d(c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
+  cal.camera.distortion = {c.k1, c.k2, c.p1, c.p2, c.k3};
+  const Eigen::Vector3d n = s.normal.normalized();
+  double d = n.dot(s.origin);
+  cv::Vec3d normal(n.x(), n.y(), n.z());
+  if (d < 0) {
+    normal = -normal;
+    d = -d;
+  }
+  cal.plane = drivers::profiler::LaserPlane{normal, d};
+  return cal;
 }
 
 }  // namespace scanmesh::test

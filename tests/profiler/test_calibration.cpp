@@ -19,46 +19,11 @@ namespace prof = scanmesh::drivers::profiler;
 
 namespace {
 
-struct Rendered {
-  sim::CameraModel truth = test::profiler_camera();
-  sim::LaserSheet laser = test::profiler_laser(150);
-  sim::ChessboardTarget board = test::calibration_board();
-  std::vector<prof::NamedImage> boards;  ///< camera views, the laser poses' boards included
-  std::vector<prof::NamedImage> lasers;  ///< the laser on the board at the laser poses, with
-                                         ///< laser-off images
-  std::vector<test::NamedPose> laser_poses;
+const test::RenderedCalibration& rendered() { return test::rendered_calibration(); }
 
-  Rendered() {
-    std::uint64_t seed = 100;
-    auto views = test::camera_poses(board);
-    laser_poses = test::laser_poses(board);
-    views.insert(views.end(), laser_poses.begin(), laser_poses.end());
-    for (const auto& v : views)
-      boards.push_back({v.name, sim::render_chessboard(truth, v.camera_from_board, board,
-                                                       test::board_look(seed++)), {}});
-    for (const auto& v : laser_poses) {
-      prof::NamedImage img{v.name,
-                           sim::render_chessboard(truth, v.camera_from_board, board,
-                                                  test::laser_board_look(seed++), &laser),
-                           sim::render_chessboard(truth, v.camera_from_board, board,
-                                                  test::laser_board_look(seed++))};
-      lasers.push_back(img);
-    }
-  }
-};
+prof::ChessboardSpec spec() { return test::calibration_spec(); }
 
-const Rendered& rendered() {
-  static const Rendered r;
-  return r;
-}
-
-prof::ChessboardSpec spec() { return prof::ChessboardSpec{cv::Size(9, 6), 10}; }
-
-const prof::CameraCalibrationResult& camera_result() {
-  static const prof::CameraCalibrationResult r =
-      prof::calibrate_camera(rendered().boards, spec(), "boards/");
-  return r;
-}
+const prof::CameraCalibrationResult& camera_result() { return rendered().camera; }
 
 double degrees_between(cv::Vec3d a, cv::Vec3d b) {
   return std::acos(std::clamp(a.dot(b) / (cv::norm(a) * cv::norm(b)), -1.0, 1.0)) * 180 /

@@ -40,7 +40,8 @@ TEST_CASE("profiler extract: JSON per image in name order, within 0.1 px of the 
                                              test::clean_look()));
     media.write_image(dir / "frames" / name, frames.back().image);
   }
-  const auto r = scanmesh_run(dir, {"profiler", "extract", "--images", (dir / "frames").string(), "--json"});
+  const auto r = scanmesh_run(dir, {"profiler", "extract", "--images", (dir / "frames").string(),
+                                    "--trim-ends", "0", "--json"});
   INFO(r.err);
   REQUIRE(r.status == 0);
   const auto lines = test::json_lines(r.out);
@@ -66,7 +67,8 @@ TEST_CASE("profiler extract: JSON per image in name order, within 0.1 px of the 
   // --rows on the transposed images: the same positions, a value per row.
   std::filesystem::create_directory(dir / "rows");
   media.write_image(dir / "rows" / "a.png", frames[1].image.t());
-  const auto rr = scanmesh_run(dir, {"profiler", "extract", "--images", (dir / "rows").string(), "--rows", "--json"});
+  const auto rr = scanmesh_run(dir, {"profiler", "extract", "--images", (dir / "rows").string(),
+                                     "--rows", "--trim-ends", "0", "--json"});
   REQUIRE(rr.status == 0);
   const auto rows = test::json_lines(rr.out);
   REQUIRE(rows.size() == 1);

@@ -85,6 +85,7 @@ TEST_CASE("extraction: clean frames within 0.1 px of the rendered centre", "[pro
   for (PeakMethod method : {PeakMethod::kCentreOfGravity, PeakMethod::kGaussian}) {
     ExtractionOptions o;
     o.method = method;
+    o.trim_ends = 0;  // every column compared with the truth
     LineExtractor ex(o);
     std::vector<float> pos;
     const auto counts = ex.extract(frame.image, {}, pos);
@@ -107,6 +108,7 @@ TEST_CASE("extraction: speckle, noise, uneven ambient light and blur", "[profile
     for (PeakMethod method : {PeakMethod::kCentreOfGravity, PeakMethod::kGaussian}) {
       ExtractionOptions o;
       o.method = method;
+      o.trim_ends = 0;
       LineExtractor ex(o);
       std::vector<float> pos;
       ex.extract(frame.image, {}, pos);
@@ -179,6 +181,7 @@ TEST_CASE("extraction: a doubled line gives the right peak or nothing, never one
       for (PeakMethod method : {PeakMethod::kCentreOfGravity, PeakMethod::kGaussian}) {
         ExtractionOptions o;
         o.method = method;
+        o.trim_ends = 0;
         LineExtractor ex(o);
         std::vector<float> pos;
         ex.extract(frame.image, {}, pos);
@@ -270,4 +273,33 @@ TEST_CASE("extraction: bad options and frames are refused with the reason", "[pr
   CHECK_THROWS_AS(ex.extract(cv::Mat(10, 10, CV_16UC1), {}, pos), ConfigError);
   CHECK_THROWS_WITH(ex.extract(cv::Mat(10, 10, CV_8UC1), cv::Mat(10, 11, CV_8UC1), pos),
                     Catch::Contains("background"));
+}
+
+TEST_CASE("extraction: the ends of runs at gaps are trimmed, not those at the border",
+          "[profiler]") {
+  // A synthetic frame: a clean line (Gaussian, sigma 1.5 px) across columns 0..99, with a gap
+  // at 40..49 (the line falls into a hole).
+  cv::Mat img(60, 100, CV_8UC1, cv::Scalar(10));
+  for (int c = 0; c < 100; ++c) {
+    if (c >= 40 && c < 50) continue;
+    for (int r = 0; r < 60; ++r)
+      img.at<std::uint8_t>(r, c) =
+          cv::saturate_cast<std::uint8_t>(10 + 150 * std::exp(-0.5 * std::pow((r - 30.3) / 1.5, 2)));
+  }
+  for (int k : {0, 2, 3}) {
+    ExtractionOptions o;
+    o.trim_ends = k;
+    LineExtractor ex(o);
+    std::vector<float> pos;
+    const auto counts = ex.extract(img, {}, pos);
+    INFO("trim_ends " << k);
+    CHECK(counts.trimmed == 2 * k);
+    CHECK(counts.found == 90 - 2 * k);
+    CHECK(std::isfinite(pos[0]));   // the border's end is kept
+    CHECK(std::isfinite(pos[99]));
+    for (int c = 40 - k; c < 40; ++c) CHECK(std::isnan(pos[static_cast<std::size_t>(c)]));
+    for (int c = 50; c < 50 + k; ++c) CHECK(std::isnan(pos[static_cast<std::size_t>(c)]));
+    CHECK(std::isfinite(pos[static_cast<std::size_t>(39 - k)]));
+    CHECK(std::abs(pos[10] - 30.3) < 0.05);
+  }
 }

@@ -21,6 +21,10 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 /// valley between them falls below this fraction of its own contrast (speckle wiggles on one
 /// line do not).
 constexpr float kValleyRatio = 0.7f;
+/// The light beside the line may differ between its two sides by this fraction of the line's
+/// contrast (and at least this many levels, for noise) before it counts as lying on an edge.
+constexpr float kFloorStepRatio = 0.15f;
+constexpr float kFloorStepLevels = 8.0f;
 
 }  // namespace
 
@@ -38,6 +42,8 @@ std::vector<std::string> ExtractionOptions::problems() const {
   if (saturation_level < 1 || saturation_level > 255)
     p.push_back("saturation_level must be 1..255, got " + std::to_string(saturation_level));
   if (max_saturated_px < 0) p.push_back("max_saturated_px must be >= 0");
+  if (trim_ends < 0 || trim_ends > 16)
+    p.push_back("trim_ends must be 0..16, got " + std::to_string(trim_ends));
   return p;
 }
 
@@ -103,8 +109,13 @@ LineExtractor::Verdict LineExtractor::analyse(const std::uint8_t* line, std::ptr
   const int max_width = options_.max_width_px;
   const int lo = std::max(0, arg - max_width);
   const int hi = std::min(n - 1, arg + max_width);
-  float floor = static_cast<float>(peak);
-  for (int i = lo; i <= hi; ++i) floor = std::min(floor, at(i));
+  // The floor: the higher of the darkest pixels on either side (on a step in the background,
+  // the brighter side's level: the line must stand out from both).
+  float left_floor = static_cast<float>(peak), right_floor = static_cast<float>(peak);
+  for (int i = lo; i < arg; ++i) left_floor = std::min(left_floor, at(i));
+  for (int i = arg + 1; i <= hi; ++i) right_floor = std::min(right_floor, at(i));
+  const float floor = std::max(arg > lo ? left_floor : right_floor,
+                               arg < hi ? right_floor : left_floor);
   const float contrast = static_cast<float>(peak) - floor;
   if (contrast < min_contrast) return Verdict::kTooWide;  // a plateau, no peak on it
   const float second_level = floor + static_cast<float>(options_.second_peak_ratio) * contrast;
@@ -131,6 +142,20 @@ LineExtractor::Verdict LineExtractor::analyse(const std::uint8_t* line, std::ptr
       const bool inside = i >= a && i <= b;
       if (!inside || valley - floor < kValleyRatio * (v - floor)) return Verdict::kAmbiguous;
     }
+  }
+  // A line is a peak: most of its window above half its contrast. A window mostly low is a
+  // plateau with a bump on it (a sliver of light at an edge), not a line.
+  int low = 0;
+  const float half = floor + 0.5f * contrast;
+  for (int i = a; i <= b; ++i) low += at(i) < half;
+  if (2 * low > b - a + 2) return Verdict::kTooWide;
+  // A line on the border of two surfaces (falling off an edge, at a silhouette, across a
+  // change of albedo): the light on its two sides differs, and its centre is biased.
+  if (a >= 2 && b + 2 < n) {
+    const float left = 0.5f * (at(a - 1) + at(a - 2));
+    const float right = 0.5f * (at(b + 1) + at(b + 2));
+    if (std::abs(left - right) > std::max(kFloorStepRatio * contrast, kFloorStepLevels))
+      return Verdict::kEdge;
   }
   int saturated = 0;
   for (int i = a; i <= b; ++i) saturated += at(i) >= static_cast<float>(options_.saturation_level);
@@ -226,6 +251,9 @@ ExtractionCounts LineExtractor::extract(const cv::Mat& image, const cv::Mat& bac
       case Verdict::kAmbiguous:
         ++counts.ambiguous;
         break;
+      case Verdict::kEdge:
+        ++counts.edge;
+        break;
     }
   };
   if (options_.axis == LineAxis::kColumns) {
@@ -243,6 +271,7 @@ ExtractionCounts LineExtractor::extract(const cv::Mat& image, const cv::Mat& bac
       tally(v);
       if (v == Verdict::kFound) positions[uc] = pos;
     }
+    trim(positions, counts);
     return counts;
   }
   // One position per row: each row is contiguous, so the peak, sum and second peak are plain
@@ -270,7 +299,32 @@ ExtractionCounts LineExtractor::extract(const cv::Mat& image, const cv::Mat& bac
     tally(v);
     if (v == Verdict::kFound) positions[static_cast<std::size_t>(r)] = pos;
   }
+  trim(positions, counts);
   return counts;
+}
+
+void LineExtractor::trim(std::vector<float>& positions, ExtractionCounts& counts) const {
+  const std::size_t k = static_cast<std::size_t>(options_.trim_ends);
+  if (k == 0) return;
+  const std::size_t n = positions.size();
+  std::size_t i = 0;
+  while (i < n) {
+    if (!std::isfinite(positions[i])) {
+      ++i;
+      continue;
+    }
+    std::size_t end = i;  // one past the run
+    while (end < n && std::isfinite(positions[end])) ++end;
+    const std::size_t len = end - i;
+    // Ends at a gap are trimmed; ends at the image's border are not.
+    const std::size_t head = i > 0 ? std::min(k, len) : 0;
+    const std::size_t tail = end < n ? std::min(k, len - head) : 0;
+    for (std::size_t j = i; j < i + head; ++j) positions[j] = kNaN;
+    for (std::size_t j = end - tail; j < end; ++j) positions[j] = kNaN;
+    counts.trimmed += static_cast<int>(head + tail);
+    counts.found -= static_cast<int>(head + tail);
+    i = end;
+  }
 }
 
 }  // namespace scanmesh::drivers::profiler

@@ -22,8 +22,8 @@ enum class LineAxis : std::uint8_t { kColumns, kRows };
 enum class PeakMethod : std::uint8_t { kCentreOfGravity, kGaussian };
 
 /// Options. Levels are grey levels of the frame after background subtraction. A column's peak
-/// is its brightest pixel; its contrast is its level above the floor (the darkest pixel within
-/// max_width_px of it: the light under the line).
+/// is its brightest pixel; its contrast is its level above the floor (the light under the line:
+/// the higher of the darkest pixels within max_width_px on either side of it).
 struct ExtractionOptions {
   LineAxis axis = LineAxis::kColumns;
   PeakMethod method = PeakMethod::kCentreOfGravity;
@@ -43,6 +43,11 @@ struct ExtractionOptions {
   int saturation_level = 250;
   /// A window with more saturated pixels than this is a saturated blob: no value. Default 8.
   int max_saturated_px = 8;
+  /// Values dropped at each end of a run of columns with values, where a gap follows (not at
+  /// the image's border): there the line falls off an edge of the surface and its last
+  /// columns see part of it, or mixtures of two surfaces (up to 1.5 px off). A run no longer
+  /// than twice this is dropped whole. 0..16. Default 2.
+  int trim_ends = 2;
 
   /// Every problem with the fields, one message each (empty: valid).
   std::vector<std::string> problems() const;
@@ -57,8 +62,14 @@ struct ExtractionCounts {
   int too_wide = 0;    ///< window wider than max_width_px, or a plateau
   int saturated = 0;   ///< more than max_saturated_px saturated pixels
   int ambiguous = 0;   ///< a second peak of second_peak_ratio or more
+  int edge = 0;        ///< the light on the line's two sides differs (it lies on an edge)
+  int trimmed = 0;     ///< dropped at the ends of runs (trim_ends)
 };
 
+/// A column also gets no value when the light on the line's two sides differs by more than
+/// 15 % of its contrast (and 8 levels): the line lies on an edge of the surface or across a
+/// change of albedo, where its centre is biased.
+///
 /// Extracts the line from frames of any size (up to 65535 rows/columns). Keeps its scratch
 /// buffers between calls: after the first frame of a size, extract() does not allocate. Not
 /// thread-safe: one extractor per thread. Cost: two passes over the frame (vectorised) plus a
@@ -77,10 +88,11 @@ class LineExtractor {
                            std::vector<float>& positions);
 
  private:
-  enum class Verdict : std::uint8_t { kFound, kWeak, kTooWide, kSaturated, kAmbiguous };
+  enum class Verdict : std::uint8_t { kFound, kWeak, kTooWide, kSaturated, kAmbiguous, kEdge };
   Verdict analyse(const std::uint8_t* line, std::ptrdiff_t stride, int n, int peak, int arg,
                   float mean, int second, float& position) const;
   void scan_columns(const cv::Mat& img);
+  void trim(std::vector<float>& positions, ExtractionCounts& counts) const;
 
   ExtractionOptions options_;
   cv::Mat diff_;
