@@ -63,6 +63,51 @@ cv::Vec3d undistorted_ray(const CameraIntrinsics& camera, cv::Point2d pixel) {
   return {out[0].x, out[0].y, 1};
 }
 
+namespace {
+
+/// The undistorted rays of every pixel centre for the five-coefficient model (k1 k2 p1 p2 k3):
+/// Newton's method on the distortion with its analytic Jacobian, started from the pixel
+/// before (two or three steps each: about 50 ms for 1280 x 1024, where cv::undistortPoints run
+/// to the same precision takes seconds). False when it does not converge somewhere.
+bool newton_rays(const CameraIntrinsics& c, cv::Mat& rays) {
+  double k[5] = {0, 0, 0, 0, 0};
+  for (std::size_t i = 0; i < c.distortion.size(); ++i) k[i] = c.distortion[i];
+  const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3], k3 = k[4];
+  const double fx = c.matrix(0, 0), fy = c.matrix(1, 1), cx = c.matrix(0, 2), cy = c.matrix(1, 2);
+  const int w = c.size.width, h = c.size.height;
+  rays.create(h, w, CV_32FC2);
+  for (int v = 0; v < h; ++v) {
+    const double yd = (v - cy) / fy;
+    double x = (0 - cx) / fx, y = yd;  // start: the distorted point itself
+    for (int u = 0; u < w; ++u) {
+      const double xd = (u - cx) / fx;
+      bool done = false;
+      for (int it = 0; it < 30 && !done; ++it) {
+        const double r2 = x * x + y * y;
+        const double radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        const double dr = k1 + r2 * (2 * k2 + 3 * k3 * r2);  // d radial / d r2
+        const double fxv = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - xd;
+        const double fyv = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - yd;
+        const double a = radial + 2 * x * x * dr + 2 * p1 * y + 6 * p2 * x;
+        const double b = 2 * x * y * dr + 2 * p1 * x + 2 * p2 * y;
+        const double d = radial + 2 * y * y * dr + 6 * p1 * y + 2 * p2 * x;
+        const double det = a * d - b * b;
+        if (!(std::abs(det) > 1e-12)) return false;
+        const double dx = (d * fxv - b * fyv) / det;
+        const double dy = (a * fyv - b * fxv) / det;
+        x -= dx;
+        y -= dy;
+        done = std::abs(dx) < 1e-13 && std::abs(dy) < 1e-13;
+      }
+      if (!done || !std::isfinite(x) || !std::isfinite(y)) return false;
+      rays.at<cv::Vec2f>(v, u) = cv::Vec2f(static_cast<float>(x), static_cast<float>(y));
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 Triangulator::Triangulator(const CameraIntrinsics& camera, const LaserPlane& plane,
                            LineAxis axis, double min_z_mm, double max_z_mm)
     : camera_(camera), plane_(plane), axis_(axis), min_z_mm_(min_z_mm), max_z_mm_(max_z_mm) {
@@ -70,6 +115,8 @@ Triangulator::Triangulator(const CameraIntrinsics& camera, const LaserPlane& pla
   for (auto& p : plane_problems(plane)) problems.push_back(std::move(p));
   if (!(min_z_mm < max_z_mm)) problems.push_back("min_z_mm must be below max_z_mm");
   if (!problems.empty()) throw ConfigError("triangulation: " + join(problems));
+  if (camera.distortion.size() <= 5 && newton_rays(camera, rays_)) return;
+  // Other models (rational, thin prism, tilted): OpenCV's iteration, slower.
   const int w = camera.size.width, h = camera.size.height;
   cv::Mat pixels(h * w, 1, CV_32FC2);
   for (int v = 0; v < h; ++v)

@@ -43,9 +43,10 @@ struct ProfilerCalibration {
 cv::Vec3d undistorted_ray(const CameraIntrinsics& camera, cv::Point2d pixel);
 
 /// Pixel positions of a line -> points in the camera frame. Precomputes the undistorted ray of
-/// every pixel centre (8 bytes per pixel; about 0.2 s for 1280 x 1024 at construction) and then
-/// interpolates between the two pixel centres around each sub-pixel position: a few ns per
-/// point, no allocation after the first profile.
+/// every pixel centre (8 bytes per pixel; for up to five coefficients about 0.1 s for
+/// 1280 x 1024 at construction, seconds for the longer models) and then interpolates between
+/// the two pixel centres around each sub-pixel position: a few ns per point, no allocation
+/// after the first profile.
 class Triangulator {
  public:
   /// Points nearer than min_z_mm or farther than max_z_mm (along the optical axis) are
