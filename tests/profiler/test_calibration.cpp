@@ -276,3 +276,16 @@ TEST_CASE("calibration files: bad files are named with the key and the reason", 
   CHECK_THROWS_WITH(prof::load_calibration(dir / "none.yml"),
                     Catch::Contains("none.yml") && Catch::Contains("cannot read"));
 }
+
+TEST_CASE("calibration files: inputs the fuzzer once failed on are refused cleanly",
+          "[profiler]") {
+  const auto dir =
+      std::filesystem::path(SCANMESH_SOURCE_DIR) / "fuzz" / "regressions" / "profiler_calibration";
+  int n = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    INFO(entry.path());
+    CHECK_THROWS_AS(prof::load_calibration(entry.path()), InputError);
+    ++n;
+  }
+  CHECK(n >= 2);
+}

@@ -19,6 +19,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
+/// Largest side of a matrix in a calibration file (the distortion has up to 14 coefficients).
+constexpr int kMaxMatrixSide = 16;
+
 /// Reads the keys of one file, each error naming the file and the key.
 class Reader {
  public:
@@ -58,20 +61,34 @@ class Reader {
     return real(key);
   }
 
-  /// An !!opencv-matrix of doubles (any numeric type), all finite, with rows x cols elements
-  /// in any shape when `any_shape` (a vector), else exactly rows x cols.
+  /// An !!opencv-matrix (any numeric type; one channel) as doubles, all finite.
   cv::Mat matrix(const std::string& key) const {
     const cv::FileNode n = node(key);
     if (!n.isMap()) fail(key, "not an OpenCV matrix (!!opencv-matrix with rows, cols, dt, data)");
+    // The shape is checked before OpenCV allocates it (a file may claim any size).
+    const cv::FileNode rows = n["rows"], cols = n["cols"], data = n["data"];
+    if (!rows.isInt() || !cols.isInt() || !n["dt"].isString() || !data.isSeq())
+      fail(key, "not an OpenCV matrix (!!opencv-matrix with rows, cols, dt, data)");
+    const int r = static_cast<int>(rows), c = static_cast<int>(cols);
+    if (r < 0 || c < 0 || r > kMaxMatrixSide || c > kMaxMatrixSide)
+      fail(key, std::to_string(r) + " x " + std::to_string(c) + " is not the size of a " +
+                    "calibration matrix");
+    const std::string dt = static_cast<std::string>(n["dt"]);
+    if (dt.size() != 1 || std::string_view("ucwsifd").find(dt[0]) == std::string_view::npos)
+      fail(key, "element type '" + dt + "': one of u c w s i f d");
+    if (data.size() != static_cast<std::size_t>(r) * static_cast<std::size_t>(c))
+      fail(key, "holds " + std::to_string(data.size()) + " values for " + std::to_string(r) +
+                    " x " + std::to_string(c));
     cv::Mat m;
     try {
       n >> m;
     } catch (const cv::Exception& e) {
       fail(key, "not an OpenCV matrix: " + e.err);
     }
-    if (m.empty() && !(n["rows"].isInt() && static_cast<int>(n["rows"]) == 0))
-      fail(key, "not an OpenCV matrix (!!opencv-matrix with rows, cols, dt, data)");
-    if (m.empty()) return cv::Mat(0, 1, CV_64F);
+    if (m.empty()) {
+      if (r * c != 0) fail(key, "not an OpenCV matrix (!!opencv-matrix with rows, cols, dt, data)");
+      return cv::Mat(0, 1, CV_64F);
+    }
     if (m.channels() != 1) fail(key, "a matrix of " + std::to_string(m.channels()) + " channels");
     cv::Mat d;
     m.convertTo(d, CV_64F);
@@ -97,12 +114,15 @@ std::string now_utc() {
 }  // namespace
 
 ProfilerCalibration parse_calibration(std::string_view text, const std::string& source) {
+  if (text.empty()) throw InputError(source + ": empty file, not a calibration");
   cv::FileStorage storage;
   try {
-    if (text.empty()) throw InputError(source + ": empty file, not a calibration");
     storage.open(std::string(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);
   } catch (const cv::Exception& e) {
     throw InputError(source + ": not a calibration file cv::FileStorage can parse: " + e.err);
+  } catch (const std::exception& e) {
+    // OpenCV 4.6's parser lets std::length_error out of some malformed input.
+    throw InputError(source + ": not a calibration file cv::FileStorage can parse: " + e.what());
   }
   if (!storage.isOpened())
     throw InputError(source + ": not a YAML, JSON or XML file cv::FileStorage can read");
@@ -141,8 +161,12 @@ ProfilerCalibration parse_calibration(std::string_view text, const std::string& 
     cal.plane = LaserPlane{normal, distance};
     if (auto v = r.optional_real("reprojection_error_px")) cal.reprojection_error_px = *v;
     if (auto v = r.optional_real("laser_plane_rms_mm")) cal.plane_rms_mm = *v;
+  } catch (const InputError&) {
+    throw;
   } catch (const cv::Exception& e) {
     throw InputError(source + ": cannot read the calibration: " + e.err);
+  } catch (const std::exception& e) {
+    throw InputError(source + ": cannot read the calibration: " + e.what());
   }
   return cal;
 }
