@@ -116,6 +116,8 @@ int run_extract(const ExtractArgs& args) {
       j["too_wide"] = counts.too_wide;
       j["saturated"] = counts.saturated;
       j["ambiguous"] = counts.ambiguous;
+      j["edge"] = counts.edge;
+      j["trimmed"] = counts.trimmed;
       std::cout << j.dump() << "\n";
       continue;
     }

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "sim_options.hpp"
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/sim/parts.hpp"
@@ -30,22 +31,7 @@ struct SimulateArgs {
   std::string mesh;
   std::string part;
   std::string replay;
-  std::string sensor = "point";
-  std::string path = "serpentine";
-  double spacing_mm = 0;       ///< 0: 0.2 (optical) or 5 (probe)
-  double line_spacing_mm = 0;  ///< 0: the path's default
-  double noise_mm = 0;
-  double dropout = 0;
-  double spike = 0;
-  double missing = 0;
-  double stage_noise_mm = 0;
-  double latency_us = 0;
-  double speed_mm_s = 20;
-  double accel_mm_s2 = 1000;
-  std::uint32_t views = 4;
-  std::uint32_t profile_points = 200;
-  std::uint32_t threads = 0;
-  std::uint64_t seed = 1;
+  sim::ScanSettings scan;
   std::string output;
   std::string truth;
   std::string stream;
@@ -147,32 +133,7 @@ int run_simulate(const SimulateArgs& args) {
   }
   const sim::Scene scene(std::move(mesh));
 
-  sim::SimConfig cfg;
-  const sim::SensorKind kind = sim::sensor_kind_from_string(args.sensor);
-  cfg.sensor = sim::default_sensor(kind);
-  if (kind == sim::SensorKind::kLine) cfg.sensor.profile_points = args.profile_points;
-  cfg.path.kind = sim::path_kind_from_string(args.path);
-  cfg.path.spacing_mm = args.spacing_mm > 0               ? args.spacing_mm
-                        : kind == sim::SensorKind::kProbe ? 5.0
-                                                          : 0.2;
-  cfg.path.line_spacing_mm = args.line_spacing_mm;
-  cfg.path.views = args.views;
-  cfg.path.limits.linear_accel_mm_s2 = args.accel_mm_s2;
-  if (kind == sim::SensorKind::kProbe) {
-    cfg.sensor.probe_speed_mm_s = args.speed_mm_s;
-  } else {
-    // The line speed and the spacing set the sampling rate.
-    cfg.sensor.rate_hz = args.speed_mm_s / cfg.path.spacing_mm;
-  }
-  cfg.imperfections.seed = args.seed;
-  cfg.imperfections.range_noise_mm = args.noise_mm;
-  cfg.imperfections.dropout_probability = args.dropout;
-  cfg.imperfections.spike_probability = args.spike;
-  cfg.imperfections.missing_probability = args.missing;
-  cfg.imperfections.stage_noise_mm = args.stage_noise_mm;
-  cfg.imperfections.sensor_latency =
-      std::chrono::nanoseconds(std::llround(args.latency_us * 1000.0));
-  cfg.threads = args.threads;
+  const sim::SimConfig cfg = args.scan.to_config();
   const sim::Simulator simulator(scene, cfg);
 
   const std::string source = args.part.empty() ? args.mesh : "part:" + args.part;
@@ -186,8 +147,8 @@ int run_simulate(const SimulateArgs& args) {
     if (!*stream_file) throw OutputError(args.stream + ": cannot create");
     writer = std::make_unique<sim::StreamWriter>(
         *stream_file, sim::stream_header(simulator, {{"source", source},
-                                                     {"path", args.path},
-                                                     {"seed", std::to_string(args.seed)},
+                                                     {"path", args.scan.path},
+                                                     {"seed", std::to_string(args.scan.seed)},
                                                      {"recorder", "scanmesh simulate"}}));
   }
   Tee tee(rec, writer.get());
@@ -233,15 +194,15 @@ int run_simulate(const SimulateArgs& args) {
     nlohmann::json j;
     j["source"] = source;
     j["triangles"] = scene.mesh().triangles.size();
-    j["sensor"] = args.sensor;
-    j["path"] = args.path;
+    j["sensor"] = args.scan.sensor;
+    j["path"] = args.scan.path;
     j["spacing_mm"] = cfg.path.spacing_mm;
-    j["line_spacing_mm"] = args.line_spacing_mm;
+    j["line_spacing_mm"] = args.scan.line_spacing_mm;
     j["lines"] = simulator.plan().lines;
     j["rate_hz"] = cfg.sensor.rate_hz;
-    j["noise_mm"] = args.noise_mm;
-    j["dropout"] = args.dropout;
-    j["seed"] = args.seed;
+    j["noise_mm"] = args.scan.noise_mm;
+    j["dropout"] = args.scan.dropout;
+    j["seed"] = args.scan.seed;
     j["measurements"] = stats.measurements;
     j["samples"] = stats.samples;
     j["missing"] = stats.missing;
@@ -259,7 +220,7 @@ int run_simulate(const SimulateArgs& args) {
     j["elapsed_s"] = elapsed;
     std::cout << j.dump() << "\n";
   } else {
-    std::cout << "simulated " << args.sensor << " sensor, " << args.path << " path over " << source
+    std::cout << "simulated " << args.scan.sensor << " sensor, " << args.scan.path << " path over " << source
               << ": " << stats.measurements << " measurements, " << stats.samples << " samples ("
               << stats.cause(sim::SampleCause::kOk) << " ok, "
               << stats.cause(sim::SampleCause::kShadowed) << " shadowed, "
@@ -293,58 +254,7 @@ void add_simulate_command(CLI::App& app, Runner& run) {
   mesh->excludes(part)->excludes(replay);
   part->excludes(mesh)->excludes(replay);
   replay->excludes(mesh)->excludes(part);
-  cmd->add_option("--sensor", args->sensor, "sensor model")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"point", "line", "probe"}));
-  cmd->add_option("--path", args->path, "scan path")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"raster", "serpentine", "rotary", "views"}));
-  cmd->add_option("--spacing", args->spacing_mm,
-                  "sample spacing along the lines at cruise speed, mm (default 0.2; probe: "
-                  "touch spacing, default 5)")
-      ->check(kPositive);
-  cmd->add_option("--line-spacing", args->line_spacing_mm,
-                  "distance between scan lines, mm (default: 5 x spacing; line profiler: 0.8 "
-                  "profile widths)")
-      ->check(kPositive);
-  cmd->add_option("--noise", args->noise_mm, "Gaussian range noise (sigma), mm")
-      ->capture_default_str()
-      ->check(kNonNegative);
-  cmd->add_option("--dropout", args->dropout, "probability that a valid reading drops out")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--spike", args->spike, "probability that a valid reading is a random spike")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--missing", args->missing, "probability that a measurement never arrives")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 0.99));
-  cmd->add_option("--stage-noise", args->stage_noise_mm,
-                  "Gaussian noise on reported stage positions (sigma), mm")
-      ->capture_default_str()
-      ->check(kNonNegative);
-  cmd->add_option("--latency-us", args->latency_us,
-                  "sensor latency relative to the stage clock, microseconds")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 1e6));
-  cmd->add_option("--speed", args->speed_mm_s,
-                  "line speed, mm/s (sets the sample rate: speed / spacing); probe: approach "
-                  "speed")
-      ->capture_default_str()
-      ->check(kPositive);
-  cmd->add_option("--accel", args->accel_mm_s2, "axis acceleration limit, mm/s^2")
-      ->capture_default_str()
-      ->check(kPositive);
-  cmd->add_option("--views", args->views, "number of table angles for --path views")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 360));
-  cmd->add_option("--profile-points", args->profile_points, "points per profile (line sensor)")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 65536));
-  cmd->add_option("--threads", args->threads, "ray-casting threads (0: all cores)")
-      ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "random seed (same seed, same bytes)")
-      ->capture_default_str();
+  add_sim_scan_options(cmd, args->scan);
   cmd->add_option("-o,--output", args->output, "measured points to write (.xyz)")
       ->required()
       ->check(points_output());

@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
   cli::add_simulate_command(app, run);
   cli::add_devices_command(app, run);
   cli::add_profiler_command(app, run);
+  cli::add_scan_command(app, run);
+  cli::add_replay_command(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

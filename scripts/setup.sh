@@ -18,9 +18,18 @@ PACKAGES=(
   # device layer and daemon
   libboost-dev libboost-system-dev libmodbus-dev libserialport-dev libusb-1.0-0-dev
   libsystemd-dev systemd libtomlplusplus-dev libsqlite3-dev
+  # scan journal: CRC-32 of its chunks (zlib)
+  zlib1g-dev
   # benchmarks only: Embree, to compare the simulator's own BVH against (bench/bench_bvh)
   libembree-dev
 )
+
+# The journal tests' independent MCAP reader (@mcap/core from the npm registry, installed by
+# tests/journal/mcap-reader/install.sh) runs on Debian's Node.js. A machine whose Node.js already
+# brings npm (NodeSource's nodejs conflicts with Debian's npm) keeps it.
+if ! command -v npm >/dev/null 2>&1; then
+  PACKAGES+=(nodejs npm)
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

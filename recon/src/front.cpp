@@ -228,9 +228,16 @@ bool segments_meet(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q
 class Builder {
  public:
   Builder(std::span<const Vec3> pts, const LocalFrames& frames, const PointGrid& grid,
-          const FrontOptions& opt, const StageObserver& observer)
+          const FrontOptions& opt, const StageObserver& observer,
+          const detail::FrontContext* context = nullptr)
       : p_(pts), f_(frames), grid_(grid), opt_(opt), observer_(observer),
         edges_map_(pts.size() * 3) {
+    ctx_ = context;
+    if (ctx_ != nullptr) {
+      ctx_keys_.reserve(ctx_->triangles.size());
+      for (const Triangle& t : ctx_->triangles) ctx_keys_.push_back(canonical(t));
+      std::sort(ctx_keys_.begin(), ctx_keys_.end());
+    }
     step("front/setup");
     const std::size_t n = pts.size();
     state_.assign(n, VertexState::kFree);
@@ -276,6 +283,25 @@ class Builder {
   FrontResult run();
 
  private:
+  // --- continuation of an existing mesh (detail::FrontContext) -----------------------------
+  const detail::FrontContext* ctx_ = nullptr;
+  std::vector<Triangle> ctx_keys_;  // the context's triangles, canonical, sorted
+  /// The rotation of t that starts at its smallest vertex (orientation kept).
+  static Triangle canonical(const Triangle& t) {
+    const int k = t[0] < t[1] ? (t[0] < t[2] ? 0 : 2) : (t[1] < t[2] ? 1 : 2);
+    return {t[k], t[(k + 1) % 3], t[(k + 2) % 3]};
+  }
+  [[nodiscard]] bool from_context(const Triangle& t) const {
+    return ctx_ != nullptr && std::binary_search(ctx_keys_.begin(), ctx_keys_.end(), canonical(t));
+  }
+  /// Whether a new triangle may have these corners: one at least is active (always, without a
+  /// context).
+  [[nodiscard]] bool allowed(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
+    return ctx_ == nullptr || ctx_->active[a] != 0 || ctx_->active[b] != 0 || ctx_->active[c] != 0;
+  }
+  /// Adds the context's triangles to the mesh (after the bulk's) and makes the front of both.
+  void load_context();
+
   struct Candidate {
     double score;
     std::uint32_t p;
@@ -916,6 +942,7 @@ bool Builder::valid(std::uint32_t eid, std::uint32_t p, const Vec3& n1, double r
                     bool second_chance) {
   const FrontEdge& e = edges_[eid];
   const std::uint32_t a = e.a, b = e.b;
+  if (!allowed(a, b, p)) return false;
   const Vec3 &pa = p_[a], &pb = p_[b], &pp = p_[p];
   // The new vertex's own surface normal must agree with the triangle.
   // Signed: the normals are oriented consistently (propagation) and every seed triangle agrees
@@ -1467,6 +1494,7 @@ void Builder::fill_small_loops() {
         const FrontEdge& fe = edges_[r];
         const std::uint32_t c = edges_[fe.next].b;
         if (ring.size() > 3 && edges_map_.find(fe.a, c) != nullptr) continue;
+        if (!allowed(fe.a, fe.b, c)) continue;
         if (min_angle_cos(fe.a, fe.b, c) > cos_fill_angle) continue;  // no slivers
         if (ring.size() > 3 && closes_empty_triangle(fe.a, c, fe.b)) continue;  // no tunnel
         if (opt_.crossing_guard) {  // the ear must not cross the mesh either
@@ -1768,6 +1796,11 @@ void Builder::split_flat_triangle_holes() {
       e = edges_[e].next;
     } while (e != id && loop.size() <= opt_.fill_max_edges);
     if (e != id || loop.size() < 3 || loop.size() > opt_.fill_max_edges) continue;
+    if (ctx_ != nullptr) {  // only around an active corner
+      bool any = false;
+      for (std::uint32_t r : loop) any = any || ctx_->active[edges_[r].a] != 0;
+      if (!any) continue;
+    }
     bool flat = true;
     for (std::uint32_t r : loop) {
       const FrontEdge& fe = edges_[r];
@@ -1885,7 +1918,12 @@ void Builder::rebuild_front() {
 /// lie on.
 void Builder::drop_crossing_components() {
   triangles_moved();
-  res_.dropped_components += remove_crossing_components(p_, tris_);
+  std::vector<std::uint8_t> keep;
+  if (ctx_ != nullptr) {
+    keep.resize(tris_.size());
+    for (std::size_t i = 0; i < tris_.size(); ++i) keep[i] = from_context(tris_[i]) ? 1 : 0;
+  }
+  res_.dropped_components += remove_crossing_components(p_, tris_, keep);
 }
 
 /// Specks: components of at most kSpeckTriangles triangles beside one of at least
@@ -1898,11 +1936,18 @@ bool Builder::drop_specks(detail::TriangleComponents& components) {
   constexpr std::uint32_t kSpeckTriangles = 2, kSpeckContext = 64;
   const std::vector<std::uint32_t>& size = components.sizes();
   if (size.size() < 2 || *std::max_element(size.begin(), size.end()) < kSpeckContext) return false;
+  std::vector<std::uint8_t> kept(size.size(), 0);  // holding a context triangle
+  if (ctx_ != nullptr)
+    for (const Triangle& t : tris_)
+      if (from_context(t)) kept[components.of(t)] = 1;
   std::size_t specks = 0;
-  for (std::uint32_t s : size) specks += s <= kSpeckTriangles ? 1 : 0;
+  for (std::size_t c = 0; c < size.size(); ++c) specks += size[c] <= kSpeckTriangles && !kept[c] ? 1 : 0;
   if (specks == 0) return false;
   triangles_moved();
-  std::erase_if(tris_, [&](const Triangle& t) { return size[components.of(t)] <= kSpeckTriangles; });
+  std::erase_if(tris_, [&](const Triangle& t) {
+    const std::uint32_t c = components.of(t);
+    return size[c] <= kSpeckTriangles && !kept[c];
+  });
   res_.dropped_specks += specks;
   return true;
 }
@@ -1957,9 +2002,12 @@ void Builder::orient_components(detail::TriangleComponents& components) {
     const Vec3 c = centroid[k] / count[k];
     vol[k] += (p_[t[0]] - c).dot((p_[t[1]] - c).cross(p_[t[2]] - c));
   }
-  std::vector<std::uint8_t> flip(ncomp, 0);
+  std::vector<std::uint8_t> flip(ncomp, 0), fixed(ncomp, 0);
+  if (ctx_ != nullptr)
+    for (const Triangle& t : tris_)
+      if (from_context(t)) fixed[comp(t)] = 1;
   for (std::uint32_t c = 0; c < ncomp; ++c)
-    if (!open[c] && vol[c] < 0) {
+    if (!open[c] && vol[c] < 0 && !fixed[c]) {
       flip[c] = 1;
       ++res_.flipped_components;
     }
@@ -2329,7 +2377,17 @@ void Builder::grow_from_bulk() {
   detail::BulkStats stats;
   detail::BulkMesh bulk;
   bulk.triangles.swap(tris_);  // empty, with the storage reserved for the whole mesh
-  detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);
+  if (ctx_ != nullptr) {
+    // Only free points: the context's vertices have their triangles already.
+    std::vector<std::uint8_t> excluded(p_.size(), 0);
+    for (std::size_t v = 0; v < excluded.size(); ++v)
+      excluded[v] = (!turning_.empty() && turning_[v] != 0) ? 1 : 0;
+    for (const Triangle& t : ctx_->triangles)
+      for (std::uint32_t v : t) excluded[v] = 1;
+    detail::bulk_triangles(p_, f_, grid_, excluded, bo, bulk, stats);
+  } else {
+    detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);
+  }
   tris_.swap(bulk.triangles);
   bulk_kept_ = tris_.size();
   for (const std::uint32_t id : bulk.long_triangles) note_if_long(id);
@@ -2355,9 +2413,21 @@ void Builder::grow_from_bulk() {
   if (check_every_step_) check_front();
 }
 
+void Builder::load_context() {
+  for (const Triangle& t : ctx_->triangles) {
+    const auto id = static_cast<std::uint32_t>(tris_.size());
+    tris_.push_back(t);
+    note_if_long(id);
+  }
+  pieces_stale_ = true;
+  rebuild_front();
+  if (check_every_step_) check_front();
+}
+
 FrontResult Builder::run() {
   const std::size_t n = p_.size();
   if (opt_.bulk) grow_from_bulk();
+  if (ctx_ != nullptr) load_context();
   step("front/growth");
   grow();  // from the bulk's border (without the bulk there is no front yet)
   // Seeds, among the points still free (states only move forward while the front grows):
@@ -2482,5 +2552,17 @@ FrontResult advance_front(std::span<const Vec3> points, const LocalFrames& frame
   Builder b(points, frames, grid, options, observer);
   return b.run();
 }
+
+namespace detail {
+
+FrontResult advance_front_from(std::span<const Vec3> points, const LocalFrames& frames,
+                               const PointGrid& grid, const FrontOptions& options,
+                               const FrontContext& context) {
+  const StageObserver none;
+  Builder b(points, frames, grid, options, none, &context);
+  return b.run();
+}
+
+}  // namespace detail
 
 }  // namespace scanmesh::recon

@@ -409,7 +409,8 @@ SelfIntersections find_self_intersections(std::span<const Vec3> vertices,
 }
 
 std::size_t remove_crossing_components(std::span<const Vec3> vertices,
-                                       std::vector<Triangle>& triangles) {
+                                       std::vector<Triangle>& triangles,
+                                       std::span<const std::uint8_t> keep) {
   const std::size_t n = vertices.size();
   for (const Triangle& t : triangles)
     for (std::uint32_t v : t)
@@ -431,11 +432,20 @@ std::size_t remove_crossing_components(std::span<const Vec3> vertices,
   const SelfIntersections crossing =
       find_self_intersections(vertices, sorted, kAllPairs, size[largest]);
   std::vector<Triangle>().swap(sorted);
-  std::vector<std::uint8_t> drop(size.size(), 0);
+  std::vector<std::uint8_t> drop(size.size(), 0), kept(size.size(), 0);
+  if (!keep.empty())
+    for (std::size_t i = 0; i < triangles.size(); ++i)
+      if (keep[i] != 0) kept[comp(triangles[i])] = 1;
   for (const auto& [i, j] : crossing.examples) {
     const std::uint32_t ci = comp(triangles[order[i]]), cj = comp(triangles[order[j]]);
     if (ci == cj) continue;
-    drop[size[ci] < size[cj] || (size[ci] == size[cj] && ci > cj) ? ci : cj] = 1;
+    const std::uint32_t smaller = size[ci] < size[cj] || (size[ci] == size[cj] && ci > cj) ? ci : cj;
+    const std::uint32_t other = smaller == ci ? cj : ci;
+    if (!kept[smaller]) {
+      drop[smaller] = 1;
+    } else if (!kept[other]) {
+      drop[other] = 1;
+    }
   }
   const auto dropped = static_cast<std::size_t>(std::count(drop.begin(), drop.end(), 1));
   if (dropped > 0) std::erase_if(triangles, [&](const Triangle& t) { return drop[comp(t)] != 0; });

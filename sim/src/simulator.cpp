@@ -450,13 +450,13 @@ SimStats Simulator::run(SampleSink& out, TruthSink* truth_sink) const {
     if (stage_due && tp <= tt && tp <= ts) {
       // On a synchronous clock the pose was computed with the sensor tick.
       const StagePose p = tp == ts ? cur->ticks[tick_pos].pose : pose_at(tp);
-      StageSample s{stage_seq++, tp + imp.stage_latency, p.x_mm, p.y_mm, p.z_mm, p.a_rad};
+      StageSample s{stage_seq++, tp + imp.stage_latency, p};
       if (imp.stage_noise_mm > 0) {
-        s.x_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
-        s.y_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
-        s.z_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
+        s.pose.x_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
+        s.pose.y_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
+        s.pose.z_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
       }
-      if (imp.stage_noise_rad > 0) s.a_rad += imp.stage_noise_rad * stage_ang_rng.gaussian();
+      if (imp.stage_noise_rad > 0) s.pose.a_rad += imp.stage_noise_rad * stage_ang_rng.gaussian();
       out.on_stage(s);
       ++stats.stage_samples;
       ++kp;
@@ -465,11 +465,11 @@ SimStats Simulator::run(SampleSink& out, TruthSink* truth_sink) const {
     if (trigger_due && tt <= ts) {
       const Contact& tr = probe_triggers_[next_trigger++];
       const StagePose p = pose_at(tr.t);
-      ProbeTrigger g{probe_seq++, tr.t + imp.stage_latency, p.x_mm, p.y_mm, p.z_mm, p.a_rad};
+      ProbeTrigger g{probe_seq++, tr.t + imp.stage_latency, p};
       if (imp.stage_noise_mm > 0) {
-        g.x_mm += imp.stage_noise_mm * probe_rng.gaussian();
-        g.y_mm += imp.stage_noise_mm * probe_rng.gaussian();
-        g.z_mm += imp.stage_noise_mm * probe_rng.gaussian();
+        g.pose.x_mm += imp.stage_noise_mm * probe_rng.gaussian();
+        g.pose.y_mm += imp.stage_noise_mm * probe_rng.gaussian();
+        g.pose.z_mm += imp.stage_noise_mm * probe_rng.gaussian();
       }
       out.on_probe(g);
       ++stats.measurements;

@@ -192,7 +192,7 @@ void put_pose_record(std::string& line, char tag, const T& s) {
   put_int(line, s.seq);
   line += ' ';
   put_int(line, s.t.ns);
-  for (const double v : {s.x_mm, s.y_mm, s.z_mm, s.a_rad}) {
+  for (const double v : {s.pose.x_mm, s.pose.y_mm, s.pose.z_mm, s.pose.a_rad}) {
     line += ' ';
     put_double(line, v);
   }
@@ -485,9 +485,9 @@ RecordedStream parse_stream(std::string_view text, std::string_view name,
       const double x = p.finite(tok[3], "x"), y = p.finite(tok[4], "y"), z = p.finite(tok[5], "z"),
                    a = p.finite(tok[6], "a");
       if (tag == "P") {
-        out.stage.push_back(StageSample{seq, t, x, y, z, a});
+        out.stage.push_back(StageSample{seq, t, {x, y, z, a}});
       } else {
-        out.probe.push_back(ProbeTrigger{seq, t, x, y, z, a});
+        out.probe.push_back(ProbeTrigger{seq, t, {x, y, z, a}});
       }
     } else {
       p.fail("unknown record type '" + std::string(tag) + "'");
@@ -558,57 +558,12 @@ void write_stream(const std::filesystem::path& file, const RecordedStream& strea
 // ---------------------------------------------------------------------------------------------
 // Samples -> points
 
-PoseInterpolator::PoseInterpolator(std::span<const StageSample> stage) : stage_(stage) {}
-
-std::optional<StagePose> PoseInterpolator::at(Timestamp t) {
-  if (stage_.empty() || t < stage_.front().t || t > stage_.back().t) return std::nullopt;
-  if (cursor_ >= stage_.size() || stage_[cursor_].t > t) {
-    const auto it = std::upper_bound(stage_.begin(), stage_.end(), t,
-                                     [](Timestamp v, const StageSample& s) { return v < s.t; });
-    cursor_ = static_cast<std::size_t>(it - stage_.begin()) - 1;
-  }
-  while (cursor_ + 1 < stage_.size() && stage_[cursor_ + 1].t <= t) ++cursor_;
-  const StageSample& a = stage_[cursor_];
-  if (a.t == t || cursor_ + 1 == stage_.size()) return StagePose{a.x_mm, a.y_mm, a.z_mm, a.a_rad};
-  const StageSample& b = stage_[cursor_ + 1];
-  const double f = static_cast<double>(t.ns - a.t.ns) / static_cast<double>(b.t.ns - a.t.ns);
-  return StagePose{a.x_mm + (b.x_mm - a.x_mm) * f, a.y_mm + (b.y_mm - a.y_mm) * f,
-                   a.z_mm + (b.z_mm - a.z_mm) * f, a.a_rad + (b.a_rad - a.a_rad) * f};
-}
-
 std::vector<MeasuredPoint> points_from_samples(
     const SensorOptics& optics, const Calibration& calibration, std::span<const StageSample> stage,
     std::span<const SensorSample> sensor, std::span<const ProbeTrigger> probe, PointStats* stats) {
-  PointStats st;
-  std::vector<MeasuredPoint> out;
-  out.reserve(sensor.size() + probe.size());
-  PoseInterpolator poses(stage);
-  std::optional<Timestamp> cached_t;
-  std::optional<Eigen::Isometry3d> cached_x;
-  for (const SensorSample& s : sensor) {
-    if (s.status != SensorStatus::kOk || !std::isfinite(s.value_mm) ||
-        s.index >= optics.ray_count()) {
-      ++st.invalid;
-      continue;
-    }
-    if (!cached_t || *cached_t != s.t_host) {
-      cached_t = s.t_host;
-      const auto pose = poses.at(s.t_host);
-      cached_x = pose ? std::optional(part_from_sensor(calibration, *pose)) : std::nullopt;
-    }
-    if (!cached_x) {
-      ++st.no_pose;
-      continue;
-    }
-    out.push_back(
-        {s.seq, s.index, s.t_host, *cached_x * optics.point_in_sensor(s.index, s.value_mm), false});
-  }
-  for (const ProbeTrigger& g : probe) {
-    const StagePose pose{g.x_mm, g.y_mm, g.z_mm, g.a_rad};
-    out.push_back({g.seq, 0, g.t, measured_probe_point(optics, calibration, pose), true});
-  }
-  st.points = out.size();
-  if (stats) *stats = st;
+  acq::AccumulatorStats st;
+  auto out = acq::points_from_samples(optics, calibration, stage, sensor, probe, &st);
+  if (stats) *stats = PointStats{st.points, st.invalid_total(), st.no_pose()};
   return out;
 }
 

@@ -54,24 +54,30 @@ struct SensorSample {
   std::uint32_t device_code = 0;  ///< the raw code the device sent with kAlarm/kDeviceError
 };
 
-/// One position report of the stage: three linear axes and a rotary table.
-struct StageSample {
-  std::uint64_t seq = 0;  ///< per stage, +1 per report
-  Timestamp t;            ///< host monotonic time of the position
+/// Position of the machine axes: three linear axes carrying the sensor and a rotary table
+/// carrying the part. The one axis tuple of the project (stage reports, probe latches, sim paths,
+/// acquisition's pose interpolation).
+struct StagePose {
   double x_mm = 0;
   double y_mm = 0;
   double z_mm = 0;
   double a_rad = 0;  ///< rotary table angle, counter-clockwise about +z seen from above
+
+  friend constexpr bool operator==(const StagePose&, const StagePose&) = default;
+};
+
+/// One position report of the stage.
+struct StageSample {
+  std::uint64_t seq = 0;  ///< per stage, +1 per report
+  Timestamp t;            ///< host monotonic time of the position
+  StagePose pose;
 };
 
 /// A touch-probe trigger: the stage position latched at the instant of contact.
 struct ProbeTrigger {
   std::uint64_t seq = 0;
-  Timestamp t;
-  double x_mm = 0;
-  double y_mm = 0;
-  double z_mm = 0;
-  double a_rad = 0;
+  Timestamp t;  ///< host monotonic time of the latch
+  StagePose pose;
 };
 
 }  // namespace scanmesh::drivers

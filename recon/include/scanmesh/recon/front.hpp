@@ -133,4 +133,24 @@ FrontResult advance_front(std::span<const Vec3> points, const LocalFrames& frame
                           const PointGrid& grid, const FrontOptions& options = {},
                           const StageObserver& observer = {});
 
+namespace detail {
+
+/// An existing mesh among the points that the front continues (the incremental path meshes a
+/// region against the published mesh around it). Every new triangle has at least one `active`
+/// corner (one flag per point); the existing triangles are never re-oriented, and a component
+/// holding one is never dropped (as crossing another or as a speck): the other one goes. The
+/// repairs may still remove existing triangles. The existing triangles must be vertex-manifold
+/// (every vertex one fan) and consistently oriented; their vertices are not free points.
+struct FrontContext {
+  std::span<const Triangle> triangles;
+  std::span<const std::uint8_t> active;
+};
+
+/// advance_front continuing `context` (its triangles come first in the result, as kept).
+FrontResult advance_front_from(std::span<const Vec3> points, const LocalFrames& frames,
+                               const PointGrid& grid, const FrontOptions& options,
+                               const FrontContext& context);
+
+}  // namespace detail
+
 }  // namespace scanmesh::recon

@@ -59,7 +59,10 @@ inline constexpr std::size_t kAllPairs = static_cast<std::size_t>(-1);
 /// component, the smaller of the two (by triangles; ties: the later one). The order of the kept
 /// triangles is unchanged. Returns the number of components removed. Costs nothing with a
 /// single component; otherwise a check of the smaller components against everything.
+/// `keep` (one flag per triangle, optional): a component holding a flagged triangle is never
+/// the one removed.
 std::size_t remove_crossing_components(std::span<const Vec3> vertices,
-                                       std::vector<Triangle>& triangles);
+                                       std::vector<Triangle>& triangles,
+                                       std::span<const std::uint8_t> keep = {});
 
 }  // namespace scanmesh::recon

@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "scanmesh/acquisition/accumulator.hpp"
 #include "scanmesh/sim/samples.hpp"
 #include "scanmesh/sim/sensor.hpp"
 #include "scanmesh/sim/simulator.hpp"
@@ -78,27 +79,7 @@ RecordedStream read_stream(const std::filesystem::path& file,
 /// atomically (temporary file + rename). Throws OutputError.
 void write_stream(const std::filesystem::path& file, const RecordedStream& stream);
 
-/// Linear interpolation of stage positions at a time (stage samples in increasing time).
-class PoseInterpolator {
- public:
-  explicit PoseInterpolator(std::span<const StageSample> stage);
-  /// The pose at t, exact at a sample's own time; nullopt outside [first, last] (no
-  /// extrapolation). Fastest for non-decreasing t (a moving cursor).
-  std::optional<StagePose> at(Timestamp t);
-
- private:
-  std::span<const StageSample> stage_;
-  std::size_t cursor_ = 0;
-};
-
-/// One measured point in the part frame.
-struct MeasuredPoint {
-  std::uint64_t seq = 0;
-  std::uint32_t index = 0;
-  Timestamp t;
-  Vec3 point_mm{};
-  bool probe = false;
-};
+using acq::MeasuredPoint;
 
 struct PointStats {
   std::uint64_t points = 0;
@@ -106,9 +87,9 @@ struct PointStats {
   std::uint64_t no_pose = 0;  ///< valid samples outside the stage's time span
 };
 
-/// What acquisition computes: for every kOk sensor sample and every probe trigger, the stage
-/// pose interpolated at its host time, mapped through the calibration. Points come in sample
-/// order, triggers after.
+/// acq::points_from_samples with the simulation's summary counts: for every kOk sensor sample
+/// and every probe trigger, the stage pose interpolated at its host time, mapped through the
+/// calibration. Points come in sample order, triggers after.
 std::vector<MeasuredPoint> points_from_samples(const SensorOptics& optics,
                                                const Calibration& calibration,
                                                std::span<const StageSample> stage,

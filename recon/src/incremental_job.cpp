@@ -1,0 +1,323 @@
+// One meshing job of the incremental path (incremental_job.hpp).
+// SPDX-License-Identifier: MIT
+#include "incremental_job.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "scanmesh/common/error.hpp"
+#include "scanmesh/recon/fill.hpp"
+#include "scanmesh/recon/front.hpp"
+#include "scanmesh/recon/grid.hpp"
+#include "scanmesh/recon/normals.hpp"
+#include "triangle_components.hpp"
+
+namespace scanmesh::recon::detail {
+
+namespace {
+
+/// The rotation of t that starts at its smallest vertex (orientation kept).
+Triangle canonical(const Triangle& t) {
+  const int k = t[0] < t[1] ? (t[0] < t[2] ? 0 : 2) : (t[1] < t[2] ? 1 : 2);
+  return {t[k], t[(k + 1) % 3], t[(k + 2) % 3]};
+}
+
+}  // namespace
+
+std::uint32_t JobMesher::publish_vertex(std::uint32_t cube, const Vec3& p,
+                                        const Eigen::Vector3f& normal, float spacing) {
+  const std::uint32_t id = mesh_.add_vertex(p);
+  grid_.set_vertex(cube, id);
+  vertex_cube_.push_back(cube);
+  vertex_normal_.push_back(normal);
+  vertex_spacing_.push_back(spacing);
+  vertex_uses_.push_back(0);
+  return id;
+}
+
+std::uint32_t JobMesher::publish_triangle(const Triangle& t) {
+  const std::uint32_t id = mesh_.add_triangle(t);
+  if (block_tris_.size() < grid_.block_count()) block_tris_.resize(grid_.block_count());
+  std::uint32_t seen[3];
+  int n = 0;
+  for (std::uint32_t v : t) {
+    ++vertex_uses_[v];
+    const std::uint32_t b = grid_.block_of(vertex_cube_[v]);
+    if (std::find(seen, seen + n, b) != seen + n) continue;
+    seen[n++] = b;
+    block_tris_[b].push_back(id);
+  }
+  return id;
+}
+
+const std::vector<std::uint32_t>& JobMesher::live_triangles(std::uint32_t b) {
+  if (block_tris_.size() < grid_.block_count()) block_tris_.resize(grid_.block_count());
+  std::vector<std::uint32_t>& l = block_tris_[b];
+  std::erase_if(l, [&](std::uint32_t id) { return !mesh_.alive(id); });
+  return l;
+}
+
+bool JobMesher::used(std::uint32_t vertex) const {
+  return vertex < vertex_uses_.size() && vertex_uses_[vertex] > 0;
+}
+
+void JobMesher::run(std::span<const std::uint32_t> job) {
+  ++stats_.jobs;
+  if (block_tris_.size() < grid_.block_count()) block_tris_.resize(grid_.block_count());
+  auto remove = [&](std::uint32_t id) {
+    if (!mesh_.alive(id)) return;
+    for (std::uint32_t v : mesh_.triangle(id)) --vertex_uses_[v];
+    mesh_.remove_triangle(id);
+    ++stats_.removed;
+  };
+  // A re-opened block: every triangle with a vertex in it goes (meshed again below).
+  for (std::uint32_t b : job)
+    for (std::uint32_t id : std::vector<std::uint32_t>(live_triangles(b))) remove(id);
+
+  // The zone: the job and its neighbours. Context: every live triangle with a vertex there, and
+  // the whole fan of any vertex outside the zone whose triangles in the context form more than
+  // one sector (the front needs one fan a vertex).
+  std::vector<std::uint32_t> zone;
+  for (std::uint32_t b : job) {
+    const std::vector<std::uint32_t> nb = grid_.neighbour_blocks(b);
+    zone.insert(zone.end(), nb.begin(), nb.end());
+  }
+  std::sort(zone.begin(), zone.end());
+  zone.erase(std::unique(zone.begin(), zone.end()), zone.end());
+  std::vector<std::uint8_t> in_job(grid_.block_count(), 0), in_zone(grid_.block_count(), 0);
+  for (std::uint32_t b : job) in_job[b] = 1;
+  for (std::uint32_t b : zone) in_zone[b] = 1;
+  std::vector<std::uint32_t> context;
+  for (std::uint32_t b : zone) {
+    const std::vector<std::uint32_t>& l = live_triangles(b);
+    context.insert(context.end(), l.begin(), l.end());
+  }
+  std::sort(context.begin(), context.end());
+  context.erase(std::unique(context.begin(), context.end()), context.end());
+  for (int round = 0; round < 8; ++round) {
+    // Directed edges of the context; a vertex outside the zone with two boundary out-edges has
+    // two sectors.
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> half;
+    half.reserve(context.size() * 3);
+    for (std::uint32_t id : context) {
+      const Triangle& t = mesh_.triangle(id);
+      for (int k = 0; k < 3; ++k) half.emplace_back(t[k], t[(k + 1) % 3]);
+    }
+    std::sort(half.begin(), half.end());
+    std::vector<std::uint32_t> split;
+    std::uint32_t last = kNoId;
+    int outs = 0;
+    for (const auto& [u, v] : half) {
+      if (u != last) {
+        last = u;
+        outs = 0;
+      }
+      if (in_zone[grid_.block_of(vertex_cube_[u])]) continue;
+      if (std::binary_search(half.begin(), half.end(), std::make_pair(v, u))) continue;
+      if (++outs == 2) split.push_back(u);
+    }
+    if (split.empty()) break;
+    const std::size_t before = context.size();
+    for (std::uint32_t v : split)
+      for (std::uint32_t id : live_triangles(grid_.block_of(vertex_cube_[v]))) {
+        const Triangle& t = mesh_.triangle(id);
+        if (t[0] == v || t[1] == v || t[2] == v) context.push_back(id);
+      }
+    std::sort(context.begin(), context.end());
+    context.erase(std::unique(context.begin(), context.end()), context.end());
+    if (context.size() == before) break;
+  }
+  stats_.context_triangles += context.size();
+
+  // The job's points: the context's vertices (ascending id), then the job's kept points after
+  // thinning. Then, for the frames only, the free kept points of the neighbouring blocks near
+  // the job.
+  std::vector<std::uint32_t> ctx_vertices;
+  for (std::uint32_t id : context)
+    for (std::uint32_t v : mesh_.triangle(id)) ctx_vertices.push_back(v);
+  std::sort(ctx_vertices.begin(), ctx_vertices.end());
+  ctx_vertices.erase(std::unique(ctx_vertices.begin(), ctx_vertices.end()), ctx_vertices.end());
+  const std::vector<std::uint32_t> job_cubes = grid_.thinned_cubes_of(job);
+  const std::size_t nc = ctx_vertices.size(), n = nc + job_cubes.size();
+  if (job_cubes.empty()) return;
+  std::vector<Vec3> pts;
+  pts.reserve(n);
+  for (std::uint32_t v : ctx_vertices) pts.push_back(mesh_.vertex(v));
+  auto position = [&](std::uint32_t c) {
+    const std::uint32_t v = grid_.vertex_of(c);
+    return v != kNoId ? mesh_.vertex(v) : (opt_.project ? grid_.projected(c) : grid_.rep(c));
+  };
+  for (std::uint32_t c : job_cubes) pts.push_back(position(c));
+  std::vector<std::uint32_t> ring;
+  for (std::uint32_t b : zone)
+    if (!in_job[b]) ring.push_back(b);
+  for (std::uint32_t c : grid_.cubes_near(job, ring, 4))
+    if (grid_.vertex_of(c) == kNoId) pts.push_back(position(c));
+  if (pts.size() < 3) return;
+
+  // Frames over all of them; the context's vertices keep the normals and spacings they were
+  // meshed with, and orient the rest (as sensor directions: each part the propagation orients
+  // is turned to agree with them, or with the sensors where no context is near).
+  std::vector<Vec3> towards(pts.size(), Vec3::Zero());
+  bool any = false;
+  for (std::size_t i = 0; i < nc; ++i) {
+    towards[i] = vertex_normal_[ctx_vertices[i]].cast<double>();
+    any = true;
+  }
+  for (std::size_t i = nc; i < n; ++i) {
+    const std::uint32_t c = job_cubes[i - nc];
+    towards[i] = grid_.towards(c);
+    any = any || towards[i] != Vec3::Zero();
+  }
+  if (!any) towards.clear();
+  LocalFrames frames;
+  {
+    PointGrid g;
+    g.build(pts, 2.5 * grid_.cube());
+    try {
+      frames = estimate_frames(pts, g, opt_.normals, towards);
+    } catch (const GeometryError&) {
+      return;  // not a surface yet
+    }
+  }
+  pts.resize(n);
+  frames.normal.resize(n);
+  frames.spacing.resize(n);
+  frames.flatness.resize(n);
+  for (std::size_t i = 0; i < nc; ++i) {
+    frames.normal[i] = vertex_normal_[ctx_vertices[i]];
+    frames.spacing[i] = vertex_spacing_[ctx_vertices[i]];
+  }
+  // The front's grid: one ring of cells covers its reach (as the batch path).
+  PointGrid grid;
+  {
+    std::vector<float> sp(frames.spacing.begin() + static_cast<std::ptrdiff_t>(nc), frames.spacing.end());
+    std::nth_element(sp.begin(), sp.begin() + static_cast<std::ptrdiff_t>(sp.size() / 2), sp.end());
+    const double median = std::max<double>(sp[sp.size() / 2], 1e-3 * grid_.cube());
+    grid.build(pts, (opt_.front.radius_factor * 1.5 + 0.6) * median);
+  }
+  // The context in the job's numbering.
+  std::vector<Triangle> ctx_local;
+  ctx_local.reserve(context.size());
+  auto local_of = [&](std::uint32_t v) {
+    return static_cast<std::uint32_t>(std::lower_bound(ctx_vertices.begin(), ctx_vertices.end(), v) -
+                                      ctx_vertices.begin());
+  };
+  for (std::uint32_t id : context) {
+    const Triangle& t = mesh_.triangle(id);
+    ctx_local.push_back({local_of(t[0]), local_of(t[1]), local_of(t[2])});
+  }
+  std::vector<std::uint8_t> active(n, 0);
+  std::fill(active.begin() + static_cast<std::ptrdiff_t>(nc), active.end(), 1);
+  const FrontResult fr =
+      advance_front_from(pts, frames, grid, opt_.front, FrontContext{ctx_local, active});
+
+  // Publish the difference: context triangles gone are removed, new ones added.
+  std::vector<std::pair<Triangle, std::uint32_t>> before;  // canonical local -> published id
+  before.reserve(context.size());
+  for (std::size_t i = 0; i < context.size(); ++i) before.emplace_back(canonical(ctx_local[i]), context[i]);
+  std::sort(before.begin(), before.end());
+  std::vector<std::uint8_t> kept(before.size(), 0);
+  std::vector<Triangle> added;
+  for (const Triangle& t : fr.triangles) {
+    const Triangle k = canonical(t);
+    const auto it = std::lower_bound(before.begin(), before.end(), std::make_pair(k, std::uint32_t{0}));
+    if (it != before.end() && it->first == k) {
+      kept[static_cast<std::size_t>(it - before.begin())] = 1;
+    } else {
+      added.push_back(t);
+    }
+  }
+  for (std::size_t i = 0; i < before.size(); ++i)
+    if (!kept[i]) remove(before[i].second);
+  std::vector<std::uint32_t> id_of(n, kNoId);
+  for (std::size_t i = 0; i < nc; ++i) id_of[i] = ctx_vertices[i];
+  for (const Triangle& t : added) {
+    Triangle g;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t l = t[k];
+      if (id_of[l] == kNoId) {
+        const std::uint32_t c = job_cubes[l - nc];
+        id_of[l] = grid_.vertex_of(c);
+        if (id_of[l] == kNoId) id_of[l] = publish_vertex(c, pts[l], frames.normal[l], fr.spacing[l]);
+      }
+      g[k] = id_of[l];
+    }
+    publish_triangle(g);
+  }
+}
+
+void JobMesher::close() {
+  // Sampling gaps: the batch path's gap closing over the whole published mesh (loops of at most
+  // gap_max_edges edges within the perimeter limit, with their own vertices).
+  if (opt_.close_gaps && opt_.gap_max_edges > 0 && mesh_.triangle_count() > 0) {
+    const MeshSnapshot snap = mesh_.snapshot();
+    std::vector<std::uint32_t> ids;
+    Mesh m = snap.to_mesh(&ids);
+    std::vector<float> spacing(ids.size());
+    for (std::size_t i = 0; i < ids.size(); ++i) spacing[i] = vertex_spacing_[ids[i]];
+    const std::size_t before = m.triangles.size();
+    FillOptions gap_fill;
+    gap_fill.max_edges = opt_.gap_max_edges;
+    gap_fill.max_perimeter_spacings = opt_.front.fill_perimeter_factor;
+    gap_fill.refine = false;
+    const FillStats fs = fill_holes(m, gap_fill, spacing);
+    stats_.gaps_closed += fs.filled;
+    for (std::size_t i = before; i < m.triangles.size(); ++i) {
+      const Triangle& t = m.triangles[i];
+      publish_triangle({ids[t[0]], ids[t[1]], ids[t[2]]});
+    }
+  }
+  // Closed components face outward (each job orients what it starts; a closed surface is only
+  // known as such at the end).
+  const MeshSnapshot snap = mesh_.snapshot();
+  std::vector<std::uint32_t> live;
+  std::vector<Triangle> tris;
+  for (std::uint32_t id = 0; id < snap.triangle_slots(); ++id)
+    if (snap.alive(id)) {
+      live.push_back(id);
+      tris.push_back(snap.triangle(id));
+    }
+  if (tris.empty()) return;
+  TriangleComponents comps(snap.vertex_count(), tris);
+  const std::size_t nc = comps.count();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> half;
+  half.reserve(tris.size() * 3);
+  for (const Triangle& t : tris)
+    for (int k = 0; k < 3; ++k) half.emplace_back(t[k], t[(k + 1) % 3]);
+  std::sort(half.begin(), half.end());
+  std::vector<std::uint8_t> open(nc, 0);
+  std::vector<Vec3> centroid(nc, Vec3::Zero());
+  std::vector<double> count(nc, 0), vol(nc, 0);
+  for (const Triangle& t : tris) {
+    const std::uint32_t c = comps.of(t);
+    for (int k = 0; k < 3; ++k)
+      if (!std::binary_search(half.begin(), half.end(), std::make_pair(t[(k + 1) % 3], t[k]))) open[c] = 1;
+    centroid[c] += snap.vertex(t[0]);
+    count[c] += 1;
+  }
+  for (const Triangle& t : tris) {
+    const std::uint32_t k = comps.of(t);
+    const Vec3 c = centroid[k] / count[k];
+    vol[k] += (snap.vertex(t[0]) - c).dot((snap.vertex(t[1]) - c).cross(snap.vertex(t[2]) - c));
+  }
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const std::uint32_t c = comps.of(tris[i]);
+    if (open[c] || vol[c] >= 0) continue;
+    for (std::uint32_t v : tris[i]) --vertex_uses_[v];
+    mesh_.remove_triangle(live[i]);
+    publish_triangle({tris[i][0], tris[i][2], tris[i][1]});
+  }
+  for (std::size_t c = 0; c < nc; ++c) stats_.flipped += !open[c] && vol[c] < 0 ? 1 : 0;
+}
+
+std::size_t JobMesher::heap_bytes() const {
+  std::size_t b = vertex_cube_.capacity() * 4 + vertex_normal_.capacity() * 12 +
+                  vertex_spacing_.capacity() * 4 + vertex_uses_.capacity() * 4 +
+                  block_tris_.capacity() * sizeof(std::vector<std::uint32_t>);
+  for (const auto& l : block_tris_) b += l.capacity() * 4;
+  return b;
+}
+
+}  // namespace scanmesh::recon::detail

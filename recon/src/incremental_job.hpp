@@ -1,0 +1,63 @@
+// One meshing job of the incremental path: the kept points of a group of settled blocks are
+// meshed by the advancing front continuing the published mesh around them (their neighbours'
+// borders), and the difference is published with stable ids. Also the closing passes of
+// finish().
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "scanmesh/recon/reconstruct.hpp"
+#include "incremental_grid.hpp"
+#include "incremental_store.hpp"
+
+namespace scanmesh::recon::detail {
+
+struct JobStats {
+  std::size_t jobs = 0;
+  std::size_t context_triangles = 0;  ///< published triangles the jobs continued (summed)
+  std::size_t removed = 0;            ///< published triangles the jobs removed (repairs, re-opening)
+  std::size_t gaps_closed = 0;        ///< sampling gaps closed by finish()
+  std::size_t flipped = 0;            ///< closed components turned outward by finish()
+};
+
+class JobMesher {
+ public:
+  JobMesher(const ReconstructOptions& options, CubeGrid& grid, PublishedMesh& mesh)
+      : opt_(options), grid_(grid), mesh_(mesh) {}
+
+  /// Meshes the blocks `job` (ascending ids; each settled, its neighbours settled or meshed).
+  /// Triangles touching a vertex of these blocks (a re-opened block) are removed first.
+  void run(std::span<const std::uint32_t> job);
+  /// finish(): closes the sampling gaps left between jobs (the batch path's gap closing) and
+  /// turns closed components outward.
+  void close();
+  /// Whether the kept point of cube c is a vertex of a live triangle.
+  [[nodiscard]] bool used(std::uint32_t vertex) const;
+  [[nodiscard]] const JobStats& stats() const { return stats_; }
+  [[nodiscard]] std::size_t heap_bytes() const;
+
+ private:
+  std::uint32_t publish_vertex(std::uint32_t cube, const Vec3& p, const Eigen::Vector3f& normal,
+                               float spacing);
+  std::uint32_t publish_triangle(const Triangle& t);
+  /// The live triangles listed under block b (the list is compacted on the way).
+  const std::vector<std::uint32_t>& live_triangles(std::uint32_t b);
+
+  const ReconstructOptions& opt_;
+  CubeGrid& grid_;
+  PublishedMesh& mesh_;
+  // Per published vertex.
+  std::vector<std::uint32_t> vertex_cube_;
+  std::vector<Eigen::Vector3f> vertex_normal_;
+  std::vector<float> vertex_spacing_;
+  std::vector<std::uint32_t> vertex_uses_;  // live triangles using it
+  // Per block: the published triangles with a vertex in it (dead ones dropped lazily).
+  std::vector<std::vector<std::uint32_t>> block_tris_;
+  JobStats stats_;
+};
+
+}  // namespace scanmesh::recon::detail
