@@ -150,8 +150,8 @@ TEST_CASE("calibration: rejected images and why", "[profiler]") {
 
   // No board anywhere (a wrong pattern size): the folder and the pattern are named.
   try {
-    const std::vector<prof::NamedImage> two(images.begin(), images.begin() + 2);
-    prof::calibrate_camera(two, prof::ChessboardSpec{cv::Size(7, 7), 10}, "boards/");
+    const std::vector<prof::NamedImage> some{images[0], images[6]};  // a board, a blank
+    prof::calibrate_camera(some, prof::ChessboardSpec{cv::Size(7, 7), 10}, "boards/");
     FAIL("calibrated without a board");
   } catch (const InputError& e) {
     CHECK_THAT(e.what(), Catch::Contains("boards/") && Catch::Contains("7x7") &&

@@ -152,7 +152,8 @@ TEST_CASE("profiler calibrate: errors", "[profiler][cli]") {
   const prof::Media media = prof::Media::load();
   test::TempDir dir;
   std::filesystem::create_directory(dir / "boards");
-  for (int i = 0; i < 2; ++i) media.write_image(dir / "boards" / rc.boards[static_cast<std::size_t>(i)].name, rc.boards[static_cast<std::size_t>(i)].gray);
+  media.write_image(dir / "boards" / rc.boards[0].name, rc.boards[0].gray);
+  media.write_image(dir / "boards" / "blank.png", cv::Mat(480, 640, CV_8UC1, cv::Scalar(90)));
   const auto base = [&](std::vector<std::string> extra) {
     std::vector<std::string> a{"profiler", "calibrate", "--images", (dir / "boards").string(),
                                "--square", "10", "--laser-images", (dir / "boards").string()};
