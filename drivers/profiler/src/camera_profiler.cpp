@@ -239,9 +239,8 @@ void CameraProfiler::run(Worker& worker) {
         misses = 0;
         try {
           process(frame, meta);
-        } catch (const std::exception& e) {
+        } catch (const std::exception&) {
           stats_.malformed.fetch_add(1);  // a frame the extraction refused: skipped
-          (void)e;
         }
         ++frame_index_;
         break;
