@@ -237,6 +237,7 @@ void add_deviation_command(CLI::App& app, Runner& run);
 void add_generate_command(CLI::App& app, Runner& run);
 void add_simulate_command(CLI::App&, Runner&);
 void add_devices_command(CLI::App& app, Runner& run);
+void add_profiler_command(CLI::App& app, Runner& run);
 void add_scan_command(CLI::App& app, Runner& run);
 void add_replay_command(CLI::App& app, Runner& run);
 void add_stage_command(CLI::App& app, Runner& run);

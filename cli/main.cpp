@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   cli::add_generate_command(app, run);
   cli::add_simulate_command(app, run);
   cli::add_devices_command(app, run);
+  cli::add_profiler_command(app, run);
   cli::add_scan_command(app, run);
   cli::add_replay_command(app, run);
   cli::add_stage_command(app, run);

@@ -13,6 +13,8 @@ PACKAGES=(
   libcgal-dev libgmp-dev libmpfr-dev
   # images (preview and deviation pictures): only the OpenCV modules we link; PNG via libpng
   libopencv-core-dev libopencv-imgproc-dev libpng-dev
+  # camera + line-laser profiler (drivers/profiler): chessboards, image files, cameras
+  libopencv-calib3d-dev libopencv-imgcodecs-dev libopencv-videoio-dev
   # device layer and daemon
   libboost-dev libboost-system-dev libmodbus-dev libserialport-dev libusb-1.0-0-dev
   libsystemd-dev systemd libtomlplusplus-dev libsqlite3-dev
