@@ -4,8 +4,10 @@
 // SPDX-License-Identifier: MIT
 #include <sys/stat.h>
 
+#include <atomic>
 #include <catch2/catch.hpp>
 #include <fstream>
+#include <thread>
 
 #include "journal/independent_reader.hpp"
 #include "journal/journal_support.hpp"
@@ -133,6 +135,33 @@ TEST_CASE("Acknowledged samples are exactly those in chunks written to the file"
     w.tick(t + std::chrono::milliseconds(100));
     CHECK(w.acknowledged_samples() == before + 1);
   }
+}
+
+TEST_CASE("The acknowledged count is read from another thread while the journal is written",
+          "[acq][journal]") {
+  TempDir dir;
+  acq::JournalWriter w(dir / "scan.mcap");
+  std::atomic<bool> done{false};
+  std::uint64_t reads = 0;
+  bool monotonic = true;
+  std::thread status([&] {
+    std::uint64_t last = 0;
+    while (!done.load(std::memory_order_acquire)) {
+      const std::uint64_t now = w.acknowledged_samples();
+      monotonic = monotonic && now >= last;
+      last = now;
+      ++reads;
+    }
+  });
+  Scenario sc;
+  sc.milliseconds = 500;
+  const auto items = write_scenario(w, sc);
+  w.flush();
+  done.store(true, std::memory_order_release);
+  status.join();
+  CHECK(monotonic);
+  CHECK(reads > 0);
+  CHECK(w.acknowledged_samples() == sample_count(items));
 }
 
 TEST_CASE("The fsync policy: by bytes and by sample time", "[acq][journal]") {
