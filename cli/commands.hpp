@@ -238,6 +238,8 @@ void add_generate_command(CLI::App& app, Runner& run);
 void add_simulate_command(CLI::App&, Runner&);
 void add_devices_command(CLI::App& app, Runner& run);
 void add_scan_command(CLI::App& app, Runner& run);
+void add_replay_command(CLI::App& app, Runner& run);
+void add_stage_command(CLI::App& app, Runner& run);
 /// `journal check`, `journal recover` and `scans` (cmd_journal.cpp).
 void add_journal_commands(CLI::App& app, Runner& run);
 

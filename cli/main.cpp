@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
   cli::add_simulate_command(app, run);
   cli::add_devices_command(app, run);
   cli::add_scan_command(app, run);
+  cli::add_replay_command(app, run);
+  cli::add_stage_command(app, run);
   cli::add_journal_commands(app, run);
   try {
     app.parse(argc, argv);

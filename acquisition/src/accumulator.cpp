@@ -67,7 +67,11 @@ Accumulator::Accumulator(AccumulatorConfig config) : config_(config) { config_.v
 std::uint16_t Accumulator::add_sensor(const SensorConfig& sensor, const Calibration& calibration) {
   if (sensors_.size() >= std::numeric_limits<std::uint16_t>::max())
     throw ConfigError("too many sensors in one accumulator");
-  sensors_.push_back(Sensor{SensorOptics(sensor), calibration, ClockMapper(config_.clock), {}});
+  Sensor s{SensorOptics(sensor), calibration, ClockMapper(config_.clock), {}, {}, {}, 0, false};
+  const Eigen::Matrix3d m = calibration.mount.linear();
+  for (std::uint32_t i = 0; i < s.optics.ray_count(); ++i) s.mounted_dirs.push_back(m * s.optics.ray_dir(i));
+  s.mount_origin = calibration.mount.translation();
+  sensors_.push_back(std::move(s));
   return static_cast<std::uint16_t>(sensors_.size() - 1);
 }
 
@@ -110,12 +114,12 @@ void Accumulator::add_sensor_samples(std::uint16_t device, std::span<const Senso
       ++stats_.invalid[static_cast<std::size_t>(SensorStatus::kOk)];
       continue;
     }
-    const Pending p{s, t, t - config_.sensor_latency + config_.stage_latency, device};
+    const Timestamp query = t - config_.sensor_latency + config_.stage_latency;
     // Fast path: nothing waiting and the history already covers the instant.
-    if (pending_begin_ == pending_.size() && !history_.empty() && p.query <= history_.back().t) {
-      resolve(p, false, out);
+    if (pending_begin_ == pending_.size() && !history_.empty() && query <= history_.back().t) {
+      resolve(s, t, query, device, out);
     } else {
-      pending_.push_back(p);
+      pending_.push_back(Pending{s, t, query, device});
       ++stats_.pending;
     }
   }
@@ -140,7 +144,7 @@ void Accumulator::drain(std::vector<MeasuredPoint>& out, bool final) {
   while (pending_begin_ < pending_.size()) {
     const Pending& p = pending_[pending_begin_];
     if (!final && (history_.empty() || p.query > history_.back().t)) break;
-    resolve(p, final, out);
+    resolve(p.sample, p.t, p.query, p.device, out);
     ++pending_begin_;
     --stats_.pending;
   }
@@ -153,45 +157,47 @@ void Accumulator::drain(std::vector<MeasuredPoint>& out, bool final) {
   }
 }
 
-void Accumulator::resolve(const Pending& p, bool final, std::vector<MeasuredPoint>& out) {
-  (void)final;
+void Accumulator::resolve(const SensorSample& s, Timestamp t, Timestamp query,
+                          std::uint16_t device, std::vector<MeasuredPoint>& out) {
   if (history_.empty()) {
     ++stats_.no_pose_before;
     return;
   }
   const StageSample& first = history_.front();
   const StageSample& last = history_.back();
-  if (p.query > last.t) {  // only when final
-    if (p.query - last.t <= config_.max_hold) {
-      emit(p, last.pose, out);
+  if (query > last.t) {  // only when final
+    if (query - last.t <= config_.max_hold) {
+      emit(s, t, query, device, last.pose, out);
     } else {
       ++stats_.no_pose_after;
     }
     return;
   }
-  if (p.query < first.t) {
-    if (first.t - p.query <= config_.max_hold) {
-      emit(p, first.pose, out);
+  if (query < first.t) {
+    if (first.t - query <= config_.max_hold) {
+      emit(s, t, query, device, first.pose, out);
     } else {
       ++stats_.no_pose_before;
     }
     return;
   }
   // Bracket: the report at or before the query, by the device's moving cursor.
-  Sensor& sensor = sensors_[p.device];
-  std::size_t c = sensor.cursor > history_base_ ? static_cast<std::size_t>(sensor.cursor - history_base_) : 0;
+  Sensor& sensor = sensors_[device];
+  std::size_t c =
+      sensor.cursor > history_base_ ? static_cast<std::size_t>(sensor.cursor - history_base_) : 0;
   if (c >= history_.size()) c = history_.size() - 1;
-  if (history_[c].t > p.query) {
-    const auto it = std::upper_bound(history_.begin(), history_.begin() + static_cast<std::ptrdiff_t>(c),
-                                     p.query, [](Timestamp v, const StageSample& s) { return v < s.t; });
+  if (history_[c].t > query) {
+    const auto it = std::upper_bound(
+        history_.begin(), history_.begin() + static_cast<std::ptrdiff_t>(c), query,
+        [](Timestamp v, const StageSample& x) { return v < x.t; });
     c = static_cast<std::size_t>(it - history_.begin()) - 1;
   }
-  while (c + 1 < history_.size() && history_[c + 1].t <= p.query) ++c;
+  while (c + 1 < history_.size() && history_[c + 1].t <= query) ++c;
   sensor.cursor = history_base_ + c;
   sensor.active = true;
   const StageSample& a = history_[c];
-  if (a.t == p.query) {
-    emit(p, a.pose, out);
+  if (a.t == query) {
+    emit(s, t, query, device, a.pose, out);
     return;
   }
   const StageSample& b = history_[c + 1];  // exists: a.t < query <= last.t
@@ -199,20 +205,32 @@ void Accumulator::resolve(const Pending& p, bool final, std::vector<MeasuredPoin
     ++stats_.no_pose_gap;
     return;
   }
-  emit(p, interpolate(a, b, p.query), out);
+  emit(s, t, query, device, interpolate(a, b, query), out);
 }
 
-void Accumulator::emit(const Pending& p, const StagePose& pose, std::vector<MeasuredPoint>& out) {
-  const Sensor& sensor = sensors_[p.device];
-  if (!cached_query_ || *cached_query_ != p.query || cached_device_ != p.device) {
-    cached_query_ = p.query;
-    cached_device_ = p.device;
-    cached_x_ = part_from_sensor(sensor.calibration, pose);
-    cached_origin_ = cached_x_.translation();
+void Accumulator::emit(const SensorSample& s, Timestamp t, Timestamp query, std::uint16_t device,
+                       const StagePose& pose, std::vector<MeasuredPoint>& out) {
+  // part_from_sensor, unrolled: p = Rz(-a) (stage + mount * (dir * r) - c) + c.
+  const Sensor& sensor = sensors_[device];
+  const Vec3& c = sensor.calibration.table_center_mm;
+  if (!cached_query_ || *cached_query_ != query || cached_device_ != device) {
+    cached_query_ = query;
+    cached_device_ = device;
+    cached_base_ = Vec3(pose.x_mm, pose.y_mm, pose.z_mm) + sensor.mount_origin - c;
+    if (pose.a_rad != cached_a_) {
+      cached_a_ = pose.a_rad;
+      cos_a_ = std::cos(pose.a_rad);
+      sin_a_ = std::sin(pose.a_rad);
+    }
   }
-  out.push_back({p.sample.seq, p.sample.index, p.t,
-                 cached_x_ * sensor.optics.point_in_sensor(p.sample.index, p.sample.value_mm),
-                 false, p.device, cached_origin_});
+  const double r = sensor.optics.config().standoff_mm + s.value_mm;
+  const Vec3 q = cached_base_ + sensor.mounted_dirs[s.index] * r;
+  const Vec3 p(cos_a_ * q.x() + sin_a_ * q.y() + c.x(), -sin_a_ * q.x() + cos_a_ * q.y() + c.y(),
+               q.z() + c.z());
+  const Vec3& o = cached_base_;
+  const Vec3 origin(cos_a_ * o.x() + sin_a_ * o.y() + c.x(), -sin_a_ * o.x() + cos_a_ * o.y() + c.y(),
+                    o.z() + c.z());
+  out.push_back({s.seq, s.index, t, p, false, device, origin});
   ++stats_.points;
 }
 

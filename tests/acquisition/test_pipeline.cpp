@@ -80,7 +80,7 @@ struct Events {
       list.push_back(e);
     };
   }
-  bool saw_state(acq::ScanState s, const std::string& reason_part = "") {
+  bool saw_state(acq::PipelineState s, const std::string& reason_part = "") {
     std::lock_guard lock(mutex);
     for (const auto& e : list)
       if (e.kind == "state" && e.stats.state == s &&
@@ -117,7 +117,7 @@ TEST_CASE("Pipeline: a simulated scan of the container is recorded and meshed", 
   }
   acq::Pipeline pipeline(backend, std::move(recorder), std::move(mesher), pc, events.callback());
   pipeline.start();
-  REQUIRE(pipeline.wait() == acq::ScanState::kCompleted);
+  REQUIRE(pipeline.wait() == acq::PipelineState::kCompleted);
   const auto st = pipeline.stats();
   CHECK(st.samples_received == total);
   CHECK(st.samples_recorded == total);  // every sample acknowledged by the journal
@@ -128,8 +128,8 @@ TEST_CASE("Pipeline: a simulated scan of the container is recorded and meshed", 
   CHECK(st.no_pose == 0);
   CHECK(st.mesh.points_in == st.points);
   CHECK(st.meshing_lag == 0);
-  CHECK(events.saw_state(acq::ScanState::kRunning));
-  CHECK(events.saw_state(acq::ScanState::kCompleted));
+  CHECK(events.saw_state(acq::PipelineState::kRunning));
+  CHECK(events.saw_state(acq::PipelineState::kCompleted));
 
   const recon::Mesh& mesh = pipeline.result();
   const auto report = recon::analyze(mesh);
@@ -162,15 +162,15 @@ TEST_CASE("Pipeline: pause, resume, snapshots while scanning, a device lost and 
   CHECK(pr.triangles > 0);
   CHECK(pr.non_manifold_edges == 0);
   pipeline.pause();
-  CHECK(pipeline.stats().state == acq::ScanState::kPaused);
+  CHECK(pipeline.stats().state == acq::PipelineState::kPaused);
   const auto before = pipeline.stats().samples_received;
   REQUIRE_FALSE(pipeline.wait_for(150ms));
   // Held: at most what was in flight when the pause came.
   CHECK(pipeline.stats().samples_received - before < 2000);
   pipeline.resume();
-  REQUIRE(pipeline.wait() == acq::ScanState::kCompleted);
-  CHECK(events.saw_state(acq::ScanState::kPaused, "paused by request"));
-  CHECK(events.saw_state(acq::ScanState::kPaused, "device lost: sim-sensor"));
+  REQUIRE(pipeline.wait() == acq::PipelineState::kCompleted);
+  CHECK(events.saw_state(acq::PipelineState::kPaused, "paused by request"));
+  CHECK(events.saw_state(acq::PipelineState::kPaused, "device lost: sim-sensor"));
   {
     std::lock_guard lock(events.mutex);
     bool lost = false, back = false;
@@ -199,7 +199,7 @@ TEST_CASE("Pipeline: stop before the end keeps what was measured", "[acq]") {
   pipeline.start();
   while (pipeline.stats().points < 20000) REQUIRE_FALSE(pipeline.wait_for(10ms));
   pipeline.stop();
-  REQUIRE(pipeline.wait() == acq::ScanState::kStopped);
+  REQUIRE(pipeline.wait() == acq::PipelineState::kStopped);
   const auto st = pipeline.stats();
   CHECK(st.reason == "stopped by request");
   CHECK(st.samples_received < total);
@@ -217,7 +217,7 @@ TEST_CASE("Pipeline: a journal that fails stops the scan with its error, the mes
   MemoryRecorder* rec = recorder.get();
   acq::Pipeline pipeline(backend, std::move(recorder), std::make_unique<acq::BatchMesher>());
   pipeline.start();
-  REQUIRE(pipeline.wait() == acq::ScanState::kFailed);
+  REQUIRE(pipeline.wait() == acq::PipelineState::kFailed);
   const auto st = pipeline.stats();
   CHECK(st.reason == "journal: /tmp/scan.mcap: No space left on device");
   CHECK(rec->written() <= 30000);
@@ -249,5 +249,5 @@ TEST_CASE("Pipeline: a backend that cannot start fails the scan with its error",
   } broken;
   acq::Pipeline pipeline(broken, nullptr, std::make_unique<acq::BatchMesher>());
   CHECK_THROWS_WITH(pipeline.start(), Catch::Contains("lkg0 (/dev/ttyUSB0)"));
-  CHECK(pipeline.stats().state == acq::ScanState::kFailed);
+  CHECK(pipeline.stats().state == acq::PipelineState::kFailed);
 }

@@ -8,21 +8,21 @@
 
 namespace scanmesh::acq {
 
-std::string_view to_string(ScanState state) {
+std::string_view to_string(PipelineState state) {
   switch (state) {
-    case ScanState::kIdle:
+    case PipelineState::kIdle:
       return "idle";
-    case ScanState::kRunning:
+    case PipelineState::kRunning:
       return "running";
-    case ScanState::kPaused:
+    case PipelineState::kPaused:
       return "paused";
-    case ScanState::kStopping:
+    case PipelineState::kStopping:
       return "stopping";
-    case ScanState::kCompleted:
+    case PipelineState::kCompleted:
       return "completed";
-    case ScanState::kStopped:
+    case PipelineState::kStopped:
       return "stopped";
-    case ScanState::kFailed:
+    case PipelineState::kFailed:
       return "failed";
   }
   return "?";
@@ -99,14 +99,14 @@ Pipeline::~Pipeline() {
 void Pipeline::start() {
   {
     std::lock_guard lock(state_mutex_);
-    if (stats_.state != ScanState::kIdle) throw ConfigError("pipeline: already started");
+    if (stats_.state != PipelineState::kIdle) throw ConfigError("pipeline: already started");
   }
   if (recorder_) recorder_->write_parameters(config_.parameters_json);
   started_ = std::chrono::steady_clock::now();
   last_progress_ = started_;
   ingest_thread_ = std::jthread([this] { ingest_loop(); });
   mesh_thread_ = std::jthread([this] { mesh_loop(); });
-  set_state(ScanState::kRunning, "");
+  set_state(PipelineState::kRunning, "");
   try {
     backend_->start(*input_);
   } catch (const std::exception& e) {
@@ -120,20 +120,20 @@ void Pipeline::start() {
 void Pipeline::pause() {
   {
     std::lock_guard lock(state_mutex_);
-    if (stats_.state != ScanState::kRunning) return;
+    if (stats_.state != PipelineState::kRunning) return;
   }
   backend_->pause();
-  set_state(ScanState::kPaused, "paused by request");
+  set_state(PipelineState::kPaused, "paused by request");
 }
 
 void Pipeline::resume() {
   {
     std::lock_guard lock(state_mutex_);
-    if (stats_.state != ScanState::kPaused) return;
+    if (stats_.state != PipelineState::kPaused) return;
     auto_paused_ = false;
   }
   backend_->resume();
-  set_state(ScanState::kRunning, "");
+  set_state(PipelineState::kRunning, "");
 }
 
 void Pipeline::stop() {
@@ -144,9 +144,9 @@ void Pipeline::stop() {
   in_cv_.notify_one();
 }
 
-ScanState Pipeline::wait() {
+PipelineState Pipeline::wait() {
   std::unique_lock lock(state_mutex_);
-  state_cv_.wait(lock, [this] { return over_ || stats_.state == ScanState::kIdle; });
+  state_cv_.wait(lock, [this] { return over_ || stats_.state == PipelineState::kIdle; });
   return stats_.state;
 }
 
@@ -158,7 +158,7 @@ bool Pipeline::wait_for(std::chrono::milliseconds timeout) {
 PipelineStats Pipeline::stats() const {
   std::lock_guard lock(state_mutex_);
   PipelineStats s = stats_;
-  if (stats_.state != ScanState::kIdle)
+  if (stats_.state != PipelineState::kIdle)
     s.elapsed = (over_ ? ended_ : std::chrono::steady_clock::now()) - started_;
   return s;
 }
@@ -170,7 +170,7 @@ recon::Mesh Pipeline::snapshot() {
     {
       std::lock_guard s(state_mutex_);
       if (over_) return result_;
-      if (stats_.state == ScanState::kIdle) return {};
+      if (stats_.state == PipelineState::kIdle) return {};
     }
     snapshot_requests_.emplace_back();
     f = snapshot_requests_.back().get_future();
@@ -179,7 +179,7 @@ recon::Mesh Pipeline::snapshot() {
   return f.get();
 }
 
-void Pipeline::set_state(ScanState state, std::string reason) {
+void Pipeline::set_state(PipelineState state, std::string reason) {
   {
     std::lock_guard lock(state_mutex_);
     if (stats_.state == state && stats_.reason == reason) return;
@@ -221,17 +221,17 @@ void Pipeline::ingest_loop() {
         finishing = true;
         std::lock_guard s(state_mutex_);
         if (!failure_.empty()) {
-          final_state_ = ScanState::kFailed;
+          final_state_ = PipelineState::kFailed;
           final_reason_ = failure_;
         } else if (stop_requested_ && !end_) {
-          final_state_ = ScanState::kStopped;
+          final_state_ = PipelineState::kStopped;
           final_reason_ = "stopped by request";
         }
       }
     }
     if (finishing) {
       // Nothing is pushed after the backend's stop() returns: take what came before it.
-      set_state(ScanState::kStopping, final_reason());
+      set_state(PipelineState::kStopping, final_reason());
       backend_->stop();
       std::lock_guard lock(in_mutex_);
       records.insert(records.end(), std::make_move_iterator(incoming_.begin()),
@@ -269,8 +269,8 @@ void Pipeline::recorder_error(const std::string& what) {
   recorder_failed_ = true;
   {
     std::lock_guard s(state_mutex_);
-    if (final_state_ != ScanState::kFailed) {
-      final_state_ = ScanState::kFailed;
+    if (final_state_ != PipelineState::kFailed) {
+      final_state_ = PipelineState::kFailed;
       final_reason_ = "journal: " + what;
     }
   }
@@ -327,22 +327,22 @@ void Pipeline::device_changed(const DeviceChange& change) {
   bool pause_now = false, resume_now = false;
   {
     std::lock_guard lock(state_mutex_);
-    if (change.state == drivers::DeviceState::kLost && stats_.state == ScanState::kRunning) {
+    if (change.state == drivers::DeviceState::kLost && stats_.state == PipelineState::kRunning) {
       auto_paused_ = true;
       pause_now = true;
     } else if (change.state == drivers::DeviceState::kAcquiring && auto_paused_ &&
-               stats_.state == ScanState::kPaused) {
+               stats_.state == PipelineState::kPaused) {
       auto_paused_ = false;
       resume_now = true;
     }
   }
   if (pause_now) {
     backend_->pause();
-    set_state(ScanState::kPaused,
+    set_state(PipelineState::kPaused,
               "device lost: " + (change.reason.empty() ? change.name : change.reason));
   } else if (resume_now) {
     backend_->resume();
-    set_state(ScanState::kRunning, "");
+    set_state(PipelineState::kRunning, "");
   }
 }
 
@@ -407,14 +407,14 @@ void Pipeline::mesh_loop() {
       failed = true;
       {
         std::lock_guard s(state_mutex_);
-        final_state_ = ScanState::kFailed;
+        final_state_ = PipelineState::kFailed;
         final_reason_ = std::string("meshing: ") + e.what();
       }
       fail(std::string("meshing: ") + e.what());
     }
     if (done) break;
   }
-  ScanState final_state;
+  PipelineState final_state;
   std::string reason;
   {
     std::lock_guard lock(state_mutex_);

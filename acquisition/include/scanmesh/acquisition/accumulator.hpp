@@ -122,6 +122,10 @@ class Accumulator {
     SensorOptics optics;
     Calibration calibration;
     ClockMapper clock;
+    // The mounting applied to each ray once: mount.linear() * ray direction, and the emitter's
+    // position on the carriage (mount.translation()).
+    std::vector<Vec3> mounted_dirs;
+    Vec3 mount_origin{};
     std::optional<std::uint64_t> last_seq;
     std::uint64_t cursor = 0;  // absolute history index: the report at or before its last query
     bool active = false;       // has queried the history
@@ -134,10 +138,12 @@ class Accumulator {
   };
   /// Resolves pending samples while the pose history covers them.
   void drain(std::vector<MeasuredPoint>& out, bool final);
-  /// Resolves one sample whose query time the history covers (or, when final, may not).
-  void resolve(const Pending& p, bool final, std::vector<MeasuredPoint>& out);
+  /// Resolves one sample at `query` (the history covers it, or it is final and may not).
+  void resolve(const SensorSample& s, Timestamp t, Timestamp query, std::uint16_t device,
+               std::vector<MeasuredPoint>& out);
   /// Maps one sample at a known pose.
-  void emit(const Pending& p, const StagePose& pose, std::vector<MeasuredPoint>& out);
+  void emit(const SensorSample& s, Timestamp t, Timestamp query, std::uint16_t device,
+            const StagePose& pose, std::vector<MeasuredPoint>& out);
   void prune_history();
 
   AccumulatorConfig config_;
@@ -148,10 +154,12 @@ class Accumulator {
   std::vector<Pending> pending_;  // in arrival order, [pending_begin_, end)
   std::size_t pending_begin_ = 0;
   // The transform of the last emitted pose (profiles share one).
+  // The last pose's transform (a profile's points share it): the emitter relative to the table
+  // axis, and the table's rotation (cos, sin of the angle, recomputed only when it changes).
   std::optional<Timestamp> cached_query_;
   std::uint16_t cached_device_ = 0;
-  Eigen::Isometry3d cached_x_ = Eigen::Isometry3d::Identity();
-  Vec3 cached_origin_{};
+  Vec3 cached_base_{};  // stage + mount origin - table centre (machine frame)
+  double cached_a_ = 0, cos_a_ = 1, sin_a_ = 0;
   AccumulatorStats stats_;
 };
 

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <vector>
 
 #include "scanmesh/acquisition/pipeline.hpp"
@@ -55,5 +56,10 @@ class IncrementalMesher final : public Mesher {
   recon::IncrementalResult result_;
   MeshProgress progress_;
 };
+
+/// The meshing stage a scan's "meshing" parameters ask for (recorded in its journal):
+/// {"mesher": "incremental" (default) or "batch", "cube": "auto" (default) or a size in mm as a
+/// number or a string}. Throws ConfigError for anything else.
+std::unique_ptr<Mesher> make_mesher(const nlohmann::json& meshing);
 
 }  // namespace scanmesh::acq

@@ -69,7 +69,7 @@ class Mesher {
   virtual recon::Mesh finish() = 0;
 };
 
-enum class ScanState : std::uint8_t {
+enum class PipelineState : std::uint8_t {
   kIdle,       ///< not started
   kRunning,
   kPaused,     ///< by request, or because a device was lost (see PipelineStats::reason)
@@ -78,10 +78,10 @@ enum class ScanState : std::uint8_t {
   kStopped,    ///< stopped on request before the end
   kFailed,     ///< a device or the journal failed; what was recorded is kept
 };
-std::string_view to_string(ScanState state);
+std::string_view to_string(PipelineState state);
 
 struct PipelineStats {
-  ScanState state = ScanState::kIdle;
+  PipelineState state = PipelineState::kIdle;
   std::string reason;                   ///< why paused / failed / stopped
   std::uint64_t samples_received = 0;   ///< sensor samples that entered the pipeline
   std::uint64_t samples_recorded = 0;   ///< acknowledged by the journal
@@ -134,7 +134,7 @@ class Pipeline {
   /// Asks the scan to stop before its end; returns at once (wait() for the result).
   void stop();
   /// Blocks until the scan is over (completed, stopped or failed) and its mesh is final.
-  ScanState wait();
+  PipelineState wait();
   /// Waits at most `timeout`; true when over.
   bool wait_for(std::chrono::milliseconds timeout);
 
@@ -175,7 +175,7 @@ class Pipeline {
   void recorder_error(const std::string& what);
   std::string final_reason() const;
   void publish_ingest_stats();
-  void set_state(ScanState state, std::string reason);
+  void set_state(PipelineState state, std::string reason);
   void emit(std::string kind, std::string device, std::string message);
   void fail(std::string message);
 
@@ -209,7 +209,7 @@ class Pipeline {
   std::condition_variable state_cv_;
   PipelineStats stats_;
   bool over_ = false;
-  ScanState final_state_ = ScanState::kCompleted;  // what the scan ends as
+  PipelineState final_state_ = PipelineState::kCompleted;  // what the scan ends as
   std::string final_reason_;
   bool recorder_failed_ = false;  // ingest thread
   bool auto_paused_ = false;

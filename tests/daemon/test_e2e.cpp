@@ -1,0 +1,566 @@
+// End to end (STYLE §8.2): the real scanmeshd started with the simulated scanner, READY=1
+// awaited on the test's notify socket, a scan driven over the control socket with its protocol
+// transcript compared to a golden file (volatile fields masked), the exported mesh checked
+// against the reference part; socket activation, the watchdog, reloads, crashes and restarts,
+// scanctl, and the systemd units.
+// SPDX-License-Identifier: MIT
+#include <sys/stat.h>
+
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <thread>
+
+#include "daemon/daemon_process.hpp"
+#include "daemon/eventually.hpp"
+#include "scanmesh/daemon/client.hpp"
+#include "scanmesh/meshio/meshio.hpp"
+#include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/sim/bvh.hpp"
+#include "scanmesh/sim/parts.hpp"
+
+using namespace scanmesh;
+using namespace scanmesh::daemon;
+using test::ChildProcess;
+using test::NotifySocket;
+using test::TempDir;
+
+namespace {
+
+const std::string kSimConfig = SCANMESH_SOURCE_DIR "/config/scanmesh-sim.toml";
+/// The simulated scan of config/scanmesh-sim.toml: 362 profiles of 200 points.
+constexpr std::uint64_t kSimSamples = 72400;
+
+struct Daemon {
+  TempDir dir;
+  NotifySocket notify{dir / "notify.sock"};
+  std::filesystem::path socket = dir / "control.sock";
+  std::filesystem::path state = dir / "state";
+  std::unique_ptr<ChildProcess> process;
+
+  void start(const std::string& config = kSimConfig, std::map<std::string, std::string> env = {},
+             std::vector<std::string> prefix = {}) {
+    env["NOTIFY_SOCKET"] = notify.path().string();
+    std::vector<std::string> args = prefix;
+    for (const std::string& a :
+         {std::string(SCANMESHD_EXE), std::string("--config"), config, std::string("--socket"),
+          socket.string(), std::string("--state-dir"), state.string(), std::string("--foreground")})
+      args.push_back(a);
+    process = std::make_unique<ChildProcess>(args, env, dir / "daemon.log");
+  }
+  void start_ready(const std::string& config = kSimConfig,
+                   std::map<std::string, std::string> env = {}) {
+    start(config, std::move(env));
+    INFO(log());
+    REQUIRE(notify.await("READY=1"));
+  }
+  std::string log() const { return test::slurp(dir / "daemon.log"); }
+  Client client() { return Client(socket, std::chrono::seconds(60)); }
+};
+
+/// Masks what varies between runs: times, rates, the temporary folder, the version.
+nlohmann::ordered_json mask(nlohmann::ordered_json j, const std::string& tmp) {
+  static const std::set<std::string> kVolatile = {
+      "uptime_s", "elapsed_s", "rate_hz", "meshing_lag_s", "started_utc", "stopped_utc", "daemon"};
+  if (j.is_object()) {
+    for (auto& [k, v] : j.items()) {
+      if (kVolatile.count(k) && !v.is_object())
+        v = "<masked>";
+      else
+        v = mask(v, tmp);
+    }
+  } else if (j.is_array()) {
+    for (auto& v : j) v = mask(v, tmp);
+  } else if (j.is_string()) {
+    std::string s = j.get<std::string>();
+    for (std::size_t at; (at = s.find(tmp)) != std::string::npos;)
+      s.replace(at, tmp.size(), "$TMP");
+    j = s;
+  }
+  return j;
+}
+
+void compare_golden(const std::vector<std::string>& lines, const std::string& name) {
+  const std::filesystem::path golden = SCANMESH_SOURCE_DIR "/tests/daemon/golden/" + name;
+  std::string text;
+  for (const auto& l : lines) text += l + "\n";
+  if (const char* u = std::getenv("SCANMESH_UPDATE_GOLDEN"); u && std::string(u) == "1") {
+    test::spit(golden, text);
+    WARN("rewrote " + golden.string());
+    return;
+  }
+  const std::string expected = test::slurp(golden);
+  REQUIRE_FALSE(expected.empty());
+  std::istringstream a(text), b(expected);
+  std::string la, lb;
+  for (int n = 1; std::getline(b, lb); ++n) {
+    REQUIRE(std::getline(a, la));
+    INFO(golden.string() << ":" << n);
+    CHECK(la == lb);
+  }
+  CHECK_FALSE(std::getline(a, la));
+}
+
+ScanStatus wait_scan_end(Client& c, std::int64_t id) {
+  for (;;) {
+    auto m = c.read();
+    REQUIRE(m.has_value());
+    if (m->cls != proto::MessageClass::kEvent || m->event != "state") continue;
+    const ScanStatus s = proto::scan_status_from(m->body);
+    if (s.id == id && s.state == ScanState::kIdle) return s;
+  }
+}
+
+}  // namespace
+
+TEST_CASE(
+    "a simulated scan through scanmeshd: READY, a golden transcript, an exact mesh, a clean stop",
+    "[e2e]") {
+  Daemon d;
+  d.start_ready();
+  const std::string tmp = d.dir.path().string();
+  std::vector<std::string> transcript;
+  Client c = d.client();
+  transcript.push_back(mask(nlohmann::ordered_json::parse(c.hello_line()), tmp).dump());
+  auto exchange = [&](const std::string& cmd, const proto::Object& args = {}) {
+    std::string raw;
+    proto::Message m = c.request(cmd, args, &raw);
+    transcript.push_back(
+        mask(nlohmann::ordered_json::parse(proto::request_line(cmd, *m.id, args)), tmp).dump());
+    transcript.push_back(mask(nlohmann::ordered_json::parse(raw), tmp).dump());
+    return m;
+  };
+  exchange("version");
+  exchange("devices");
+  exchange("status");
+  exchange("watch", proto::Object().set("enable", true));
+  const proto::Message started =
+      exchange("scan.start", proto::Object()
+                                 .set("name", "e2e")
+                                 .set("parameters", Parameters{{"playback", std::int64_t{0}}}));
+  const std::int64_t id = proto::scan_record_from(*started.body.get_object("scan")).id;
+  const ScanStatus end = wait_scan_end(c, id);
+  transcript.push_back(
+      mask(nlohmann::ordered_json::parse(proto::event_line("state", proto::to_object(end))), tmp)
+          .dump());
+  CHECK(end.reason == "finished");
+  CHECK(end.counters.samples == kSimSamples);
+  exchange("watch", proto::Object().set("enable", false));
+  exchange("status");
+  exchange("scan.list");
+  exchange("scan.info", proto::Object().set("scan", id));
+  const auto stl = d.state / "exports" / "e2e.stl";
+  const proto::Message exported =
+      exchange("mesh.export", proto::Object().set("path", stl.string()));
+  exchange("mesh.preview", proto::Object().set("path", (d.state / "exports" / "e2e.png").string()));
+  exchange("mesh.export", proto::Object().set("path", (d.dir / "outside.stl").string()));
+  exchange("scan.pause");
+  exchange("frobnicate");
+  compare_golden(transcript, "e2e_sim.golden.jsonl");
+
+  // The exported mesh, read back: manifold, consistently oriented, on the part's surface.
+  REQUIRE(exported.cls == proto::MessageClass::kReply);
+  const recon::Mesh mesh = meshio::read_mesh(stl);
+  const recon::MeshReport rep = recon::analyze(mesh);
+  CHECK(rep.triangles > 20000);
+  CHECK(rep.non_manifold_edges == 0);
+  CHECK(rep.non_manifold_vertices == 0);
+  CHECK(rep.orientation_consistent);
+  const recon::Mesh part = sim::make_part("container");
+  const sim::Bvh bvh(part);
+  double sum2 = 0, worst = 0;
+  for (const auto& v : mesh.vertices) {
+    const double dist = (bvh.closest_point(v).point - v).norm();
+    sum2 += dist * dist;
+    worst = std::max(worst, dist);
+  }
+  const double rms = std::sqrt(sum2 / static_cast<double>(mesh.vertices.size()));
+  INFO("rms " << rms << " mm, max " << worst << " mm (range noise 0.01 mm)");
+  CHECK(rms < 0.02);
+  CHECK(worst < 0.2);
+
+  // SIGTERM: STOPPING=1, exit 0, the socket removed.
+  d.process->signal(SIGTERM);
+  CHECK(d.notify.await("STOPPING=1"));
+  CHECK(d.process->wait() == 0);
+  CHECK_FALSE(std::filesystem::exists(d.socket));
+  CHECK_THAT(d.log(), Catch::Contains("<5>received SIGTERM: shutting down"));
+}
+
+TEST_CASE(
+    "SIGTERM during a scan stops it cleanly: the journal is complete and the catalog says stopped",
+    "[e2e]") {
+  Daemon d;
+  d.start_ready();
+  Client c = d.client();
+  c.request("watch");
+  const proto::Message m =
+      c.request("scan.start", proto::Object()
+                                  .set("name", "cut")
+                                  .set("parameters", Parameters{{"playback", std::int64_t{1}}}));
+  REQUIRE(m.cls == proto::MessageClass::kReply);
+  REQUIRE(test::eventually(
+      [&] { return proto::status_info_from(c.request("status").body).scan.counters.samples > 0; }));
+  d.process->signal(SIGTERM);
+  CHECK(d.process->wait() == 0);
+  // The journal ends with its end record (complete), the record says stopped.
+  const std::string journal = test::slurp(d.state / "scans/scan-1.stream");
+  CHECK(journal.rfind("\nE ") != std::string::npos);
+  CHECK_THAT(test::slurp(d.state / "scans/scan-1.toml"), Catch::Contains("state = 'stopped'"));
+}
+
+TEST_CASE("socket activation: scanmeshd adopts the socket systemd-socket-activate passes",
+          "[e2e][systemd]") {
+  Daemon d;
+  d.start(kSimConfig, {},
+          {"/usr/bin/systemd-socket-activate", "-l", d.socket.string(), "-E",
+           "NOTIFY_SOCKET=" + d.notify.path().string()});
+  // As under systemd, the first connection starts the daemon: the client connects before it runs
+  // and gets its HELLO once it has adopted the socket.
+  // (The socket file appears at bind, before listen: connecting is retried until it listens.)
+  std::unique_ptr<Client> c;
+  REQUIRE(test::eventually([&] {
+    try {
+      c = std::make_unique<Client>(d.socket, std::chrono::seconds(30));
+      return true;
+    } catch (const Error&) {
+      return false;
+    }
+  }));
+  INFO(d.log());
+  REQUIRE(d.notify.await("READY=1"));
+  CHECK(c->request("status").cls == proto::MessageClass::kReply);
+  CHECK_THAT(d.log(), Catch::Contains("(socket activation)"));
+  d.process->signal(SIGTERM);
+  CHECK(d.process->wait() == 0);
+
+  // A passed socket that is not the configured one is refused, loudly.
+  Daemon wrong;
+  const auto other = wrong.dir / "other.sock";
+  wrong.start(kSimConfig, {}, {"/usr/bin/systemd-socket-activate", "-l", other.string()});
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::strncpy(addr.sun_path, other.c_str(), sizeof addr.sun_path - 1);
+  REQUIRE(test::eventually(
+      [&] { return ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0; }));
+  CHECK(wrong.process->wait() == 1);  // started by the connection, it refuses the socket
+  ::close(fd);
+  CHECK_THAT(wrong.log(),
+             Catch::Contains("none is a listening Unix stream socket at " + wrong.socket.string()));
+}
+
+TEST_CASE("the watchdog is pinged from the io loop when WATCHDOG_USEC is set for this process",
+          "[e2e][systemd]") {
+  Daemon d;
+  d.start_ready(kSimConfig, {{"WATCHDOG_USEC", "100000"}});
+  int pings = 0;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (pings < 5 && std::chrono::steady_clock::now() < end)
+    if (auto m = d.notify.next(std::chrono::seconds(1)); m && *m == "WATCHDOG=1") ++pings;
+  CHECK(pings == 5);
+  d.process->signal(SIGTERM);
+  CHECK(d.process->wait() == 0);
+
+  // WATCHDOG_PID naming another process: not ours to ping.
+  Daemon other;
+  other.start_ready(kSimConfig, {{"WATCHDOG_USEC", "50000"}, {"WATCHDOG_PID", "1"}});
+  Client c = other.client();
+  CHECK(c.request("status").cls == proto::MessageClass::kReply);
+  while (auto m = other.notify.next(std::chrono::milliseconds(300))) CHECK(*m != "WATCHDOG=1");
+}
+
+TEST_CASE(
+    "SIGHUP reloads the configuration, says what needs a restart, and keeps a good one over a bad "
+    "one",
+    "[e2e][systemd]") {
+  Daemon d;
+  const auto cfg = d.dir / "d.toml";
+  test::spit(cfg, "[daemon]\nmax_clients = 8\n[backend]\nkind = \"sim\"\n");
+  d.start_ready(cfg.string());
+  Client c = d.client();
+  auto max_clients = [&] {
+    return c.request("config.get")
+        .body.get_object("config")
+        ->get_object("daemon")
+        ->get_int("max_clients");
+  };
+  CHECK(max_clients() == 8);
+  test::spit(cfg,
+             "[daemon]\nmax_clients = 16\n[backend]\nkind = \"sim\"\n[sim]\npart = \"sphere\"\n");
+  d.process->signal(SIGHUP);
+  REQUIRE(d.notify.await("RELOADING=1"));
+  REQUIRE(d.notify.await("READY=1"));
+  CHECK(max_clients() == 16);
+  CHECK_THAT(d.log(), Catch::Contains("these changes need a restart to take effect: sim"));
+  test::spit(cfg, "[daemon]\nmax_clients = 0\nbogus = 1\n");
+  d.process->signal(SIGHUP);
+  REQUIRE(d.notify.await("READY=1"));
+  CHECK(max_clients() == 16);
+  const std::string log = d.log();
+  CHECK_THAT(log, Catch::Contains("<3>reload refused, the running configuration stays:"));
+  CHECK_THAT(log, Catch::Contains("<3>" + cfg.string() +
+                                  ": daemon.max_clients: must be in [1, 4096], got 0"));
+  CHECK_THAT(log, Catch::Contains("<3>" + cfg.string() + ": daemon.bogus: unknown key"));
+}
+
+TEST_CASE("a bad configuration is reported whole, with file and key, before anything opens",
+          "[e2e]") {
+  Daemon d;
+  const auto cfg = d.dir / "bad.toml";
+  test::spit(cfg, "[daemon]\nmax_clients = -1\n[sim]\npart = \"teapot\"\nspacing_mm = 0\n");
+  d.start(cfg.string());
+  CHECK(d.process->wait() == 1);
+  const std::string log = d.log();
+  CHECK_THAT(log, Catch::Contains("<3>configuration errors:"));
+  CHECK_THAT(log,
+             Catch::Contains(cfg.string() + ": daemon.max_clients: must be in [1, 4096], got -1"));
+  CHECK_THAT(log, Catch::Contains(cfg.string() + ": sim.part: unknown part 'teapot'"));
+  CHECK_THAT(log,
+             Catch::Contains(cfg.string() + ": sim.spacing_mm: must be in [0.001, 50], got 0"));
+  CHECK_FALSE(std::filesystem::exists(d.socket));
+  CHECK_FALSE(std::filesystem::exists(d.state));
+}
+
+TEST_CASE(
+    "SIGKILL mid-scan, then a restart: the scan is interrupted, nothing acknowledged is lost, "
+    "and it resumes to the end",
+    "[e2e][faults]") {
+  Daemon d;
+  d.start_ready();
+  std::uint64_t acknowledged = 0;
+  {
+    Client c = d.client();
+    REQUIRE(
+        c.request("scan.start", proto::Object()
+                                    .set("name", "crash")
+                                    .set("parameters", Parameters{{"playback", std::int64_t{4}}}))
+            .cls == proto::MessageClass::kReply);
+    REQUIRE(test::eventually(
+        [&] {
+          acknowledged = proto::status_info_from(c.request("status").body).scan.counters.samples;
+          return acknowledged > 20000;
+        },
+        std::chrono::seconds(30)));
+  }
+  d.process->signal(SIGKILL);
+  CHECK(d.process->wait() == 128 + SIGKILL);
+
+  d.start_ready();
+  Client c = d.client();
+  const ScanRecord before = proto::scan_record_from(
+      *c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
+  CHECK(before.state == "interrupted");
+  CHECK(before.samples >= acknowledged);
+  CHECK(before.samples < kSimSamples);
+  CHECK_THAT(d.log(), Catch::Contains("scan 1 'crash' was interrupted"));
+  CHECK(c.request("scan.close_interrupted", proto::Object().set("scan", 2)).error_code ==
+        "not_found");
+
+  c.request("watch");
+  const proto::Message resumed =
+      c.request("scan.resume_interrupted", proto::Object().set("scan", 1));
+  REQUIRE(resumed.cls == proto::MessageClass::kReply);
+  const ScanStatus end = wait_scan_end(c, 1);
+  CHECK(end.reason == "finished");
+  // Every sample exactly once: the first segment's and the new one's add up to the whole scan.
+  CHECK(end.counters.samples == kSimSamples);
+  const ScanRecord after = proto::scan_record_from(
+      *c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
+  CHECK(after.state == "finished");
+  CHECK(std::filesystem::exists(d.state / "scans/scan-1.2.stream"));
+  CHECK(c.request("scan.resume_interrupted", proto::Object().set("scan", 1)).error_code ==
+        "bad_state");
+  const auto stl = d.state / "exports/crash.stl";
+  REQUIRE(c.request("mesh.export", proto::Object().set("path", stl.string())).cls ==
+          proto::MessageClass::kReply);
+  CHECK(recon::analyze(meshio::read_mesh(stl)).non_manifold_edges == 0);
+}
+
+TEST_CASE("an interrupted scan can be closed instead", "[e2e][faults]") {
+  Daemon d;
+  d.start_ready();
+  {
+    Client c = d.client();
+    REQUIRE(
+        c.request("scan.start", proto::Object()
+                                    .set("name", "x")
+                                    .set("parameters", Parameters{{"playback", std::int64_t{1}}}))
+            .cls == proto::MessageClass::kReply);
+    REQUIRE(test::eventually([&] {
+      return proto::status_info_from(c.request("status").body).scan.counters.samples > 5000;
+    }));
+  }
+  d.process->signal(SIGKILL);
+  d.process->wait();
+  d.start_ready();
+  Client c = d.client();
+  const proto::Message closed = c.request("scan.close_interrupted", proto::Object().set("scan", 1));
+  REQUIRE(closed.cls == proto::MessageClass::kReply);
+  CHECK(proto::scan_record_from(*closed.body.get_object("scan")).state == "closed");
+  // Its mesh is made from its journal on request.
+  const auto stl = d.state / "exports/x.stl";
+  CHECK(c.request("mesh.export", proto::Object().set("path", stl.string()).set("scan", 1)).cls ==
+        proto::MessageClass::kReply);
+  // A new scan gets the next id.
+  const proto::Message next = c.request("scan.start", proto::Object().set("name", "y"));
+  CHECK(proto::scan_record_from(*next.body.get_object("scan")).id == 2);
+}
+
+TEST_CASE("scanctl: text and --json output, a progress bar while waiting, exit codes", "[e2e]") {
+  Daemon d;
+  d.start_ready();
+  const std::string sock = d.socket.string();
+  auto scanctl = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), {"--socket", sock});
+    return test::run_program(SCANCTL_EXE, d.dir, args);
+  };
+  const auto v = scanctl({"version"});
+  CHECK(v.status == 0);
+  CHECK_THAT(v.out, Catch::StartsWith("scanmeshd 0.1.0, protocol 1.0, backend sim"));
+  const auto j = scanctl({"--json", "status"});
+  CHECK(j.status == 0);
+  CHECK(nlohmann::ordered_json::parse(j.out)["class"] == "REPLY");
+  const auto run = scanctl({"scan", "start", "--name", "cli", "--param", "playback=8", "--wait"});
+  INFO(run.err);
+  CHECK(run.status == 0);
+  CHECK_THAT(run.out, Catch::Contains("scan 1 'cli' started"));
+  CHECK_THAT(run.out, Catch::Contains("scan 1 'cli': finished, 72,400 samples"));
+  CHECK_THAT(run.err, Catch::Contains("] 100%  samples 72,400"));  // the last progress line
+  CHECK_THAT(run.err, Catch::Contains("rate "));
+  const auto list = scanctl({"scan", "list"});
+  CHECK_THAT(list.out, Catch::Contains("cli"));
+  CHECK_THAT(list.out, Catch::Contains("finished"));
+  const auto exp = scanctl({"mesh", "export", "--path", (d.state / "exports/cli.ply").string()});
+  CHECK(exp.status == 0);
+  CHECK_THAT(exp.out, Catch::StartsWith("wrote " + (d.state / "exports/cli.ply").string() +
+                                        " (ply, scan 1:"));
+  const auto refused = scanctl({"mesh", "export", "--path", (d.dir / "x.stl").string()});
+  CHECK(refused.status == 1);
+  CHECK_THAT(refused.err, Catch::StartsWith("scanctl: path_refused: "));
+  const auto bad_param = scanctl({"scan", "start", "--name", "z", "--param", "part=teapot"});
+  CHECK(bad_param.status == 1);
+  CHECK_THAT(bad_param.err,
+             Catch::Contains("bad_argument: parameters.part: unknown part 'teapot'"));
+  const auto nobody =
+      test::run_program(SCANCTL_EXE, d.dir, {"--socket", (d.dir / "none.sock").string(), "status"});
+  CHECK(nobody.status == 3);
+  CHECK_THAT(nobody.err, Catch::Contains("cannot connect to scanmeshd"));
+}
+
+TEST_CASE("the systemd units pass systemd-analyze verify; sysusers and tmpfiles apply",
+          "[e2e][systemd]") {
+  TempDir dir;
+  std::string service = test::slurp(SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.service.in");
+  auto replace = [&](const std::string& from, const std::string& to) {
+    for (std::size_t at; (at = service.find(from)) != std::string::npos;)
+      service.replace(at, from.size(), to);
+  };
+  replace("@SCANMESHD@", SCANMESHD_EXE);
+  replace("@SCANMESH_CONFIG@", kSimConfig);
+  test::spit(dir / "scanmesh.service", service);
+  std::filesystem::copy_file(SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.socket",
+                             dir / "scanmesh.socket");
+  const auto verify = test::run_program(
+      "/usr/bin/systemd-analyze", dir,
+      {"verify", (dir / "scanmesh.socket").string(), (dir / "scanmesh.service").string()});
+  INFO(verify.err);
+  CHECK(verify.status == 0);
+  CHECK(verify.err.empty());  // unknown keys are only warnings: none may appear
+  CHECK(verify.out.empty());
+  for (const char* key :
+       {"Type=notify", "WatchdogSec=", "Restart=on-failure", "RuntimeDirectory=scanmesh",
+        "ProtectSystem=strict", "PrivateTmp=yes", "NoNewPrivileges=yes", "DevicePolicy=closed",
+        "DeviceAllow=char-ttyUSB rw", "RestrictAddressFamilies=AF_UNIX", "--foreground"})
+    CHECK_THAT(service, Catch::Contains(key));
+  const std::string socket = test::slurp(dir / "scanmesh.socket");
+  for (const char* key :
+       {"ListenStream=/run/scanmesh/control.sock", "SocketMode=0660", "SocketGroup=scanmesh"})
+    CHECK_THAT(socket, Catch::Contains(key));
+
+  const auto root = dir / "root";
+  std::filesystem::create_directories(root / "etc");
+  const auto users = test::run_program(
+      "/usr/bin/systemd-sysusers", dir,
+      {"--root=" + root.string(), SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.sysusers"});
+  INFO(users.err);
+  CHECK(users.status == 0);
+  CHECK_THAT(test::slurp(root / "etc/passwd"), Catch::Contains("scanmesh:x:"));
+  CHECK_THAT(test::slurp(root / "etc/group"), Catch::Contains("scanmesh:x:"));
+  const auto tmpfiles =
+      test::run_program("/usr/bin/systemd-tmpfiles", dir,
+                        {"--create", "--root=" + root.string(),
+                         SCANMESH_SOURCE_DIR "/config/systemd/scanmesh.tmpfiles"});
+  INFO(tmpfiles.err);
+  CHECK(tmpfiles.status == 0);
+  struct stat st {};
+  REQUIRE(::stat((root / "var/lib/scanmesh/exports").c_str(), &st) == 0);
+  CHECK((st.st_mode & 07777) == 02770);
+}
+
+TEST_CASE(
+    "cmake --install lays the daemon out as Debian expects; CPack makes a .deb that creates "
+    "the user and enables the socket",
+    "[e2e][packaging]") {
+  TempDir dir;
+  const auto root = dir / "root";
+  const auto install =
+      test::run_program("/usr/bin/env", dir,
+                        {"DESTDIR=" + root.string(), CMAKE_EXE, "--install", SCANMESH_BINARY_DIR,
+                         "--prefix", "/usr", "--component", "daemon"});
+  INFO(install.out << install.err);
+  REQUIRE(install.status == 0);
+  for (const char* f :
+       {"usr/bin/scanmeshd", "usr/bin/scanctl", "usr/lib/systemd/system/scanmesh.socket",
+        "usr/lib/systemd/system/scanmesh.service", "usr/lib/sysusers.d/scanmesh.conf",
+        "usr/lib/tmpfiles.d/scanmesh.conf", "usr/lib/udev/rules.d/60-scanmesh.rules",
+        "etc/scanmesh/scanmesh.toml", "usr/share/doc/scanmesh/PROTOCOL.md"})
+    CHECK(std::filesystem::is_regular_file(root / f));
+  CHECK_THAT(test::slurp(root / "usr/lib/systemd/system/scanmesh.service"),
+             Catch::Contains(
+                 "ExecStart=/usr/bin/scanmeshd --config /etc/scanmesh/scanmesh.toml --foreground"));
+  // The installed daemon accepts the installed configuration.
+  const auto check = test::run_program(
+      (root / "usr/bin/scanmeshd").string(), dir,
+      {"--config", (root / "etc/scanmesh/scanmesh.toml").string(), "--check-config"});
+  CHECK(check.status == 0);
+  // An operator's configuration survives a reinstall.
+  test::spit(root / "etc/scanmesh/scanmesh.toml", "# mine\n");
+  REQUIRE(test::run_program("/usr/bin/env", dir,
+                            {"DESTDIR=" + root.string(), CMAKE_EXE, "--install",
+                             SCANMESH_BINARY_DIR, "--prefix", "/usr", "--component", "daemon"})
+              .status == 0);
+  CHECK(test::slurp(root / "etc/scanmesh/scanmesh.toml") == "# mine\n");
+
+  const auto pack = test::run_program(CPACK_EXE, dir,
+                                      {"-G", "DEB", "-B", (dir / "deb").string(), "--config",
+                                       SCANMESH_BINARY_DIR "/CPackConfig.cmake"});
+  INFO(pack.out << pack.err);
+  REQUIRE(pack.status == 0);
+  const auto deb = dir / "deb" / "scanmesh_0.1.0_amd64.deb";
+  REQUIRE(std::filesystem::is_regular_file(deb));
+  const auto info = test::run_program("/usr/bin/dpkg-deb", dir, {"-I", deb.string()});
+  CHECK_THAT(info.out, Catch::Contains("Package: scanmesh"));
+  CHECK_THAT(info.out, Catch::Contains("Depends: systemd"));
+  CHECK_THAT(info.out, Catch::Contains("libsystemd0"));
+  CHECK_THAT(info.out, Catch::Contains("postinst"));
+  CHECK_THAT(info.out, Catch::Contains("conffiles"));
+  const auto ctl = dir / "control";
+  REQUIRE(test::run_program("/usr/bin/dpkg-deb", dir, {"-e", deb.string(), ctl.string()}).status ==
+          0);
+  const std::string postinst = test::slurp(ctl / "postinst");
+  CHECK_THAT(postinst, Catch::Contains("systemd-sysusers /usr/lib/sysusers.d/scanmesh.conf"));
+  CHECK_THAT(postinst, Catch::Contains("deb-systemd-helper enable scanmesh.socket"));
+  CHECK(test::slurp(ctl / "conffiles") == "/etc/scanmesh/scanmesh.toml\n");
+  // What postinst does to a system, applied to the package's own files in an alternate root.
+  const auto sys = dir / "sys";
+  REQUIRE(test::run_program("/usr/bin/dpkg-deb", dir, {"-x", deb.string(), sys.string()}).status ==
+          0);
+  CHECK(test::run_program(
+            "/usr/bin/systemd-sysusers", dir,
+            {"--root=" + sys.string(), (sys / "usr/lib/sysusers.d/scanmesh.conf").string()})
+            .status == 0);
+  CHECK_THAT(test::slurp(sys / "etc/passwd"), Catch::Contains("scanmesh:x:"));
+}
