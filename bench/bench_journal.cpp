@@ -104,7 +104,11 @@ WriteFigures write_journal(const std::filesystem::path& file, const Stream& s, s
     }
     w.write_sensor(sensor, b);
     while (next_stage_ns <= b.back().t_host.ns) {
-      w.write_stage(stage, {stage_seq++, {next_stage_ns}, {1, 2, 3, 0.5}});
+      drv::StageSample st;
+      st.seq = stage_seq++;
+      st.t.ns = next_stage_ns;
+      st.pose = {1, 2, 3, 0.5};
+      w.write_stage(stage, st);
       next_stage_ns += 1'000'000;
     }
   }

@@ -58,9 +58,8 @@ CREATE TABLE output_files (
 );
 )sql";
 
-constexpr std::array kStates{ScanState::kRunning,   ScanState::kPaused,
-                             ScanState::kCompleted, ScanState::kStopped,
-                             ScanState::kFailed,    ScanState::kInterrupted};
+constexpr std::array kStates{ScanState::kRunning, ScanState::kPaused, ScanState::kCompleted,
+                             ScanState::kStopped, ScanState::kFailed, ScanState::kInterrupted};
 
 int user_version(const Database& db) {
   Statement s(db, "PRAGMA user_version");
@@ -281,8 +280,7 @@ void Catalog::finish(std::int64_t id, ScanState state, const std::string& reason
                      std::uint64_t samples, std::uint64_t points, WallTime now) {
   Impl& c = *impl_;
   c.require_writable();
-  if (state != ScanState::kCompleted && state != ScanState::kStopped &&
-      state != ScanState::kFailed)
+  if (state != ScanState::kCompleted && state != ScanState::kStopped && state != ScanState::kFailed)
     c.refuse(id,
              "a scan finishes completed, stopped or failed, not " + std::string(to_string(state)));
   Transaction t(c.db);
