@@ -82,9 +82,9 @@ int run_scan(const ScanArgs& args) {
     report_error = std::current_exception();
   }
   if (catalog) {
-    const acq::CatalogState state = st.state == acq::PipelineState::kCompleted ? acq::CatalogState::kCompleted
-                                 : st.state == acq::PipelineState::kStopped ? acq::CatalogState::kStopped
-                                                                            : acq::CatalogState::kFailed;
+    const acq::ScanState state = st.state == acq::PipelineState::kCompleted ? acq::ScanState::kCompleted
+                                 : st.state == acq::PipelineState::kStopped ? acq::ScanState::kStopped
+                                                                            : acq::ScanState::kFailed;
     catalog->finish(scan_id, state, st.reason, st.samples_recorded, st.points, wall_now());
     if (!report_error && !pipeline.result().triangles.empty()) {
       catalog->add_output(scan_id, std::filesystem::absolute(out.output), "mesh", wall_now());

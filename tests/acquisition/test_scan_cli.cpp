@@ -52,7 +52,7 @@ TEST_CASE("scan --sim: a simulated scan of the steps meshed while it runs", "[ac
   const auto rec = catalog.scan(j["scan_id"].get<std::int64_t>());
   REQUIRE(rec);
   CHECK(rec->name == "steps-1");
-  CHECK(rec->state == acq::CatalogState::kCompleted);
+  CHECK(rec->state == acq::ScanState::kCompleted);
   CHECK(rec->samples == j["recorded"].get<std::uint64_t>());
   CHECK(rec->points == j["points"].get<std::uint64_t>());
   REQUIRE(rec->segments.size() == 1);

@@ -81,7 +81,7 @@ int main(int argc, char** argv) {
     say("acked " + std::to_string(acked));
     std::fprintf(stderr, "%s\n", e.what());
     if (catalog)
-      catalog->finish(scan_id, acq::CatalogState::kFailed, e.what(), acked, 0,
+      catalog->finish(scan_id, acq::ScanState::kFailed, e.what(), acked, 0,
                       std::chrono::system_clock::now());
     return 3;
   }

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -47,6 +48,7 @@ inline drv::SensorSample sensor_sample(int stream, std::uint64_t i, std::uint32_
   return s;
 }
 
+/// Stage report `i`: odd ones carry a controller time, every tenth says the stage is idle.
 inline drv::StageSample stage_sample(std::uint64_t i, std::int64_t t0_ns = 1'000'000'000,
                                      std::int64_t period_ns = 1'000'000) {
   drv::StageSample s;
@@ -54,7 +56,22 @@ inline drv::StageSample stage_sample(std::uint64_t i, std::int64_t t0_ns = 1'000
   s.t.ns = t0_ns + static_cast<std::int64_t>(i) * period_ns;
   s.pose = {0.01 * static_cast<double>(i), -0.5 * static_cast<double>(i % 100), 3.25,
             1e-4 * static_cast<double>(i)};
+  if (i % 2 == 1) s.t_device = drv::Timestamp{static_cast<std::int64_t>(i) * 999'983};
+  s.status = i % 10 == 0 ? drv::StageStatus::kIdle : drv::StageStatus::kMoving;
   return s;
+}
+
+/// Probe trigger `n` latched at stage report s: every other one with the controller's surface
+/// point (a CMM).
+inline drv::ProbeTrigger probe_trigger(std::uint64_t n, const drv::StageSample& s) {
+  drv::ProbeTrigger p;
+  p.seq = n;
+  p.t = s.t;
+  p.pose = s.pose;
+  p.t_device = s.t_device;
+  if (n % 2 == 0)
+    p.surface = drv::SurfacePoint{s.pose.x_mm + 1.5, s.pose.y_mm, s.pose.z_mm - 2.0, 0.6, 0, 0.8};
+  return p;
 }
 
 inline bool same_double(double a, double b) {
@@ -72,19 +89,38 @@ inline bool same_pose(const drv::StagePose& a, const drv::StagePose& b) {
          same_double(a.z_mm, b.z_mm) && same_double(a.a_rad, b.a_rad);
 }
 
+inline bool same_stage(const drv::StageSample& a, const drv::StageSample& b) {
+  return a.seq == b.seq && a.t == b.t && same_pose(a.pose, b.pose) && a.t_device == b.t_device &&
+         a.status == b.status;
+}
+
+inline bool same_surface(const std::optional<drv::SurfacePoint>& a,
+                         const std::optional<drv::SurfacePoint>& b) {
+  if (a.has_value() != b.has_value()) return false;
+  if (!a) return true;
+  return same_double(a->x_mm, b->x_mm) && same_double(a->y_mm, b->y_mm) &&
+         same_double(a->z_mm, b->z_mm) && same_double(a->i, b->i) && same_double(a->j, b->j) &&
+         same_double(a->k, b->k);
+}
+
+inline bool same_probe(const drv::ProbeTrigger& a, const drv::ProbeTrigger& b) {
+  return a.seq == b.seq && a.t == b.t && same_pose(a.pose, b.pose) && a.t_device == b.t_device &&
+         same_surface(a.surface, b.surface);
+}
+
 /// One record of a journal as the tests see it: a sample (sensor, stage or probe) or a JSON
 /// record, on a device or topic.
 struct Item {
   std::string topic;
   drv::SensorSample sensor{};
   drv::StageSample stage{};
+  drv::ProbeTrigger probe{};
   std::string json;
   std::int64_t t_ns = 0;
 
   friend bool operator==(const Item& a, const Item& b) {
-    return a.topic == b.topic && same_sample(a.sensor, b.sensor) && a.stage.seq == b.stage.seq &&
-           a.stage.t == b.stage.t && same_pose(a.stage.pose, b.stage.pose) && a.json == b.json &&
-           a.t_ns == b.t_ns;
+    return a.topic == b.topic && same_sample(a.sensor, b.sensor) && same_stage(a.stage, b.stage) &&
+           same_probe(a.probe, b.probe) && a.json == b.json && a.t_ns == b.t_ns;
   }
 };
 
@@ -94,13 +130,16 @@ inline Item sensor_item(const std::string& device, const drv::SensorSample& s) {
   it.sensor = s;
   return it;
 }
-inline Item pose_item(const std::string& topic, std::uint64_t seq, drv::Timestamp t,
-                      const drv::StagePose& p) {
+inline Item stage_item(const std::string& topic, const drv::StageSample& s) {
   Item it;
   it.topic = topic;
-  it.stage.seq = seq;
-  it.stage.t = t;
-  it.stage.pose = p;
+  it.stage = s;
+  return it;
+}
+inline Item probe_item(const std::string& topic, const drv::ProbeTrigger& p) {
+  Item it;
+  it.topic = topic;
+  it.probe = p;
   return it;
 }
 inline Item json_item(const std::string& topic, const nlohmann::json& j, std::int64_t t) {
@@ -121,10 +160,10 @@ class Recorder final : public acq::JournalVisitor {
     for (const auto& x : s) items.push_back(sensor_item(c.device, x));
   }
   void on_stage(const acq::ChannelInfo& c, const drv::StageSample& s) override {
-    items.push_back(pose_item(c.topic, s.seq, s.t, s.pose));
+    items.push_back(stage_item(c.topic, s));
   }
   void on_probe(const acq::ChannelInfo& c, const drv::ProbeTrigger& p) override {
-    items.push_back(pose_item(c.topic, p.seq, p.t, p.pose));
+    items.push_back(probe_item(c.topic, p));
   }
   void on_event(const acq::ChannelInfo& c, drv::Timestamp t, std::string_view j) override {
     items.push_back(json_item(c.topic, nlohmann::json::parse(j), t.ns));

@@ -38,13 +38,7 @@ inline Step scenario_step(const Scenario& sc, int ms) {
     s.line.push_back(sensor_sample(1, static_cast<std::uint64_t>(ms) * sc.profile_points + k,
                                    sc.profile_points, true, kScenarioT0, 1'000'000));
   s.stage = stage_sample(static_cast<std::uint64_t>(ms), kScenarioT0);
-  if (ms % 200 == 100) {
-    drivers::ProbeTrigger g;
-    g.seq = static_cast<std::uint64_t>(ms / 200);
-    g.t = s.stage.t;
-    g.pose = s.stage.pose;
-    s.probe = g;
-  }
+  if (ms % 200 == 100) s.probe = probe_trigger(static_cast<std::uint64_t>(ms / 200), s.stage);
   return s;
 }
 
@@ -52,9 +46,8 @@ inline Step scenario_step(const Scenario& sc, int ms) {
 inline void step_items(const Step& s, std::vector<Item>& items) {
   for (const auto& x : s.point) items.push_back(sensor_item("lkg0", x));
   for (const auto& x : s.line) items.push_back(sensor_item("line0", x));
-  items.push_back(pose_item("/stages/xyz", s.stage.seq, s.stage.t, s.stage.pose));
-  if (s.probe)
-    items.push_back(pose_item("/probes/probe0", s.probe->seq, s.probe->t, s.probe->pose));
+  items.push_back(stage_item("/stages/xyz", s.stage));
+  if (s.probe) items.push_back(probe_item("/probes/probe0", *s.probe));
 }
 
 inline const nlohmann::json& scenario_config() {
@@ -142,15 +135,13 @@ class ScenarioChecker final : public acq::JournalVisitor {
     }
   }
   void on_stage(const acq::ChannelInfo&, const drivers::StageSample& s) override {
-    const auto want = stage_sample(static_cast<std::uint64_t>(ms_), kScenarioT0);
-    if (phase_ != 2 || s.seq != want.seq || s.t != want.t || !same_pose(s.pose, want.pose))
+    if (phase_ != 2 || !same_stage(s, stage_sample(static_cast<std::uint64_t>(ms_), kScenarioT0)))
       return fail("stage sample " + std::to_string(s.seq) + " out of order or altered");
     next();
   }
   void on_probe(const acq::ChannelInfo&, const drivers::ProbeTrigger& p) override {
     const auto st = stage_sample(static_cast<std::uint64_t>(ms_), kScenarioT0);
-    if (phase_ != 3 || p.seq != static_cast<std::uint64_t>(ms_ / 200) || p.t != st.t ||
-        !same_pose(p.pose, st.pose))
+    if (phase_ != 3 || !same_probe(p, probe_trigger(static_cast<std::uint64_t>(ms_ / 200), st)))
       return fail("probe trigger " + std::to_string(p.seq) + " out of order or altered");
     next();
   }

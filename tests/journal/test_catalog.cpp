@@ -13,7 +13,7 @@
 
 using namespace scanmesh;
 using namespace scanmesh::test;
-using acq::CatalogState;
+using acq::ScanState;
 
 namespace {
 
@@ -66,15 +66,15 @@ TEST_CASE("The catalog: schema version 1 in WAL mode, and a scan's life", "[acq]
                         {{"min_angle_deg", 30}}},
                        at(1));
     c.set_paused(id, true, at(2));
-    CHECK(c.scan(id)->state == CatalogState::kPaused);
+    CHECK(c.scan(id)->state == ScanState::kPaused);
     c.set_paused(id, false, at(3));
     c.update_counts(id, 1000, 900, at(4));
-    c.finish(id, CatalogState::kCompleted, "done", 5000, 4800, at(5));
+    c.finish(id, ScanState::kCompleted, "done", 5000, 4800, at(5));
     c.add_output(id, dir / "bracket.stl", "mesh", at(6));
     CHECK_THROWS_WITH(
         c.set_paused(id, true, at(7)),
         Catch::Contains("scan " + std::to_string(id)) && Catch::Contains("completed"));
-    CHECK_THROWS_WITH(c.finish(id, CatalogState::kStopped, "", 0, 0, at(7)),
+    CHECK_THROWS_WITH(c.finish(id, ScanState::kStopped, "", 0, 0, at(7)),
                       Catch::Contains("already"));
     CHECK_THROWS_WITH(c.update_counts(99, 0, 0, at(7)), Catch::Contains("scan 99: no such scan"));
   }
@@ -87,7 +87,7 @@ TEST_CASE("The catalog: schema version 1 in WAL mode, and a scan's life", "[acq]
   const auto s = c.scan(id);
   REQUIRE(s);
   CHECK(s->name == "bracket");
-  CHECK(s->state == CatalogState::kCompleted);
+  CHECK(s->state == ScanState::kCompleted);
   CHECK(s->started_at == acq::iso_time(at(1)));
   CHECK(s->stopped_at == acq::iso_time(at(5)));
   CHECK(s->samples == 5000);
@@ -129,11 +129,11 @@ TEST_CASE("Scans left running are interrupted at open, recovered, then resumed o
 
   auto c = acq::Catalog::open(db, at(10));
   CHECK(c.newly_interrupted() == std::vector<std::int64_t>{a, b});
-  CHECK(c.scan(a)->state == CatalogState::kInterrupted);
-  CHECK(c.scan(b)->state == CatalogState::kInterrupted);
+  CHECK(c.scan(a)->state == ScanState::kInterrupted);
+  CHECK(c.scan(b)->state == ScanState::kInterrupted);
   CHECK_THAT(c.scan(b)->stop_reason, Catch::Contains("paused"));
   CHECK(c.scan(b)->stopped_at == acq::iso_time(at(10)));
-  CHECK(c.scan(live)->state == CatalogState::kRunning);
+  CHECK(c.scan(live)->state == ScanState::kRunning);
 
   // Resume needs the open segment's journal recovered first.
   CHECK_THROWS_WITH(c.resume(a, dir / "a-2.mcap", at(11)),
@@ -151,13 +151,13 @@ TEST_CASE("Scans left running are interrupted at open, recovered, then resumed o
   // Resume: segment 2, running; it finishes with the samples of both segments.
   CHECK(c.resume(a, dir / "a-2.mcap", at(13)) == 2);
   s = c.scan(a);
-  CHECK(s->state == CatalogState::kRunning);
+  CHECK(s->state == ScanState::kRunning);
   CHECK(s->stop_reason.empty());
   CHECK(s->stopped_at.empty());
   REQUIRE(s->segments.size() == 2);
   CHECK(s->segments[1].state == "open");
   CHECK(s->segments[1].path == (dir / "a-2.mcap").string());
-  c.finish(a, CatalogState::kCompleted, "done", a1_samples + 777, 10, at(20));
+  c.finish(a, ScanState::kCompleted, "done", a1_samples + 777, 10, at(20));
   s = c.scan(a);
   CHECK(s->segments[1].state == "closed");
   CHECK(s->segments[1].samples == 777);
@@ -167,7 +167,7 @@ TEST_CASE("Scans left running are interrupted at open, recovered, then resumed o
   CHECK(acq::recover_interrupted(c, b, at(21)).empty());
   CHECK_THAT(c.scan(b)->segments[0].note, Catch::Contains("missing"));
   c.close_interrupted(b, "closed by the operator after a crash", at(22));
-  CHECK(c.scan(b)->state == CatalogState::kStopped);
+  CHECK(c.scan(b)->state == ScanState::kStopped);
   CHECK(c.scan(b)->stop_reason == "closed by the operator after a crash");
   CHECK_THROWS_WITH(c.resume(b, dir / "b-2.mcap", at(23)),
                     Catch::Contains("only an interrupted scan resumes"));

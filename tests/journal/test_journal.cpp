@@ -4,8 +4,10 @@
 // SPDX-License-Identifier: MIT
 #include <sys/stat.h>
 
+#include <atomic>
 #include <catch2/catch.hpp>
 #include <fstream>
+#include <thread>
 
 #include "journal/independent_reader.hpp"
 #include "journal/journal_support.hpp"
@@ -126,13 +128,42 @@ TEST_CASE("Acknowledged samples are exactly those in chunks written to the file"
     const auto stage = w.add_stage("late");
     const auto before = w.acknowledged_samples();
     const drivers::Timestamp t{5'000'000'000};
-    w.write_stage(stage, {0, t, {}});
+    drivers::StageSample late;
+    late.t = t;
+    w.write_stage(stage, late);
     CHECK(w.acknowledged_samples() == before);
     w.tick(t + std::chrono::milliseconds(99));
     CHECK(w.acknowledged_samples() == before);
     w.tick(t + std::chrono::milliseconds(100));
     CHECK(w.acknowledged_samples() == before + 1);
   }
+}
+
+TEST_CASE("The acknowledged count is read from another thread while the journal is written",
+          "[acq][journal]") {
+  TempDir dir;
+  acq::JournalWriter w(dir / "scan.mcap");
+  std::atomic<bool> done{false};
+  std::uint64_t reads = 0;
+  bool monotonic = true;
+  std::thread status([&] {
+    std::uint64_t last = 0;
+    while (!done.load(std::memory_order_acquire)) {
+      const std::uint64_t now = w.acknowledged_samples();
+      monotonic = monotonic && now >= last;
+      last = now;
+      ++reads;
+    }
+  });
+  Scenario sc;
+  sc.milliseconds = 500;
+  const auto items = write_scenario(w, sc);
+  w.flush();
+  done.store(true, std::memory_order_release);
+  status.join();
+  CHECK(monotonic);
+  CHECK(reads > 0);
+  CHECK(w.acknowledged_samples() == sample_count(items));
 }
 
 TEST_CASE("The fsync policy: by bytes and by sample time", "[acq][journal]") {
@@ -259,10 +290,30 @@ TEST_CASE("The independent reader (@mcap/core) opens a journal and decodes what 
           s.t_device = drivers::Timestamp{num(d["t_device_ns"][i])};
         decoded.push_back(sensor_item(t.substr(9), s));
       }
-    } else if (t.rfind("/stages/", 0) == 0 || t.rfind("/probes/", 0) == 0) {
-      decoded.push_back(pose_item(t, unum(d["seq"]), {num(d["t_ns"])},
-                                  {d["x_mm"].get<double>(), d["y_mm"].get<double>(),
-                                   d["z_mm"].get<double>(), d["a_rad"].get<double>()}));
+    } else if (t.rfind("/stages/", 0) == 0) {
+      drivers::StageSample s;
+      s.seq = unum(d["seq"]);
+      s.t.ns = num(d["t_ns"]);
+      s.pose = {d["x_mm"].get<double>(), d["y_mm"].get<double>(), d["z_mm"].get<double>(),
+                d["a_rad"].get<double>()};
+      if (num(d["t_device_ns"]) != std::numeric_limits<std::int64_t>::min())
+        s.t_device = drivers::Timestamp{num(d["t_device_ns"])};
+      s.status = static_cast<drivers::StageStatus>(d["status"].get<int>());
+      decoded.push_back(stage_item(t, s));
+    } else if (t.rfind("/probes/", 0) == 0) {
+      drivers::ProbeTrigger p;
+      p.seq = unum(d["seq"]);
+      p.t.ns = num(d["t_ns"]);
+      p.pose = {d["x_mm"].get<double>(), d["y_mm"].get<double>(), d["z_mm"].get<double>(),
+                d["a_rad"].get<double>()};
+      if (num(d["t_device_ns"]) != std::numeric_limits<std::int64_t>::min())
+        p.t_device = drivers::Timestamp{num(d["t_device_ns"])};
+      if (d["has_surface"].get<bool>())
+        p.surface =
+            drivers::SurfacePoint{d["surface_x_mm"].get<double>(), d["surface_y_mm"].get<double>(),
+                                  d["surface_z_mm"].get<double>(), d["surface_i"].get<double>(),
+                                  d["surface_j"].get<double>(),    d["surface_k"].get<double>()};
+      decoded.push_back(probe_item(t, p));
     } else {
       decoded.push_back(json_item(t, d, num(m["publish_time"])));
     }
@@ -277,6 +328,12 @@ TEST_CASE("The independent reader (@mcap/core) opens a journal and decodes what 
       a.sensor.value_mm = b.sensor.value_mm;
     // JSON has no negative zero (-0.0 comes back as 0): poses compare by value.
     if (a.stage.pose == b.stage.pose) a.stage.pose = b.stage.pose;
+    if (a.probe.pose == b.probe.pose) a.probe.pose = b.probe.pose;
+    if (a.probe.surface && b.probe.surface && a.probe.surface->x_mm == b.probe.surface->x_mm &&
+        a.probe.surface->y_mm == b.probe.surface->y_mm &&
+        a.probe.surface->z_mm == b.probe.surface->z_mm && a.probe.surface->i == b.probe.surface->i &&
+        a.probe.surface->j == b.probe.surface->j && a.probe.surface->k == b.probe.surface->k)
+      a.probe.surface = b.probe.surface;
     if (!(a == b)) {
       ++mismatches;
       UNSCOPED_INFO("item " << i << " on " << b.topic << ": node '" << a.json << "' t " << a.t_ns
@@ -302,7 +359,7 @@ TEST_CASE("Bad arguments are refused with the file's name", "[acq][journal]") {
     CHECK_THROWS_WITH(w.write_event({0}, std::string_view("{\"event\": ")),
                       Catch::Contains("not JSON"));
     w.write_event({0}, std::string_view(R"({"event": "started"})"));
-    CHECK_THROWS_WITH(w.write_stage(acq::StageChannel{s.id}, {}),
+    CHECK_THROWS_WITH(w.write_stage(acq::StageChannel{s.id}, drivers::StageSample()),
                       Catch::Contains("not one of this journal's stage channels"));
   }
   // A journal is never overwritten.

@@ -89,7 +89,7 @@ TEST_CASE("scanmesh scans lists the catalog", "[acq][catalog][cli]") {
   {
     auto c = acq::Catalog::open(db, now);
     const auto a = c.create_scan({"bracket", dir / "bracket-1.mcap", {}, {}, {}, {}}, now);
-    c.finish(a, acq::CatalogState::kFailed,
+    c.finish(a, acq::ScanState::kFailed,
              "journal bracket-1.mcap: write failed: No space left on device", 123, 45, now);
     (void)c.create_scan({"housing", dir / "housing-1.mcap", {}, {}, {}, {}}, now);
   }
@@ -108,7 +108,7 @@ TEST_CASE("scanmesh scans lists the catalog", "[acq][catalog][cli]") {
   CHECK_THAT(r.out, Catch::Contains("bracket") && Catch::Contains("failed") &&
                         Catch::Contains("housing") && Catch::Contains("running"));
   // Listing changes nothing: the running scan stays running (only the daemon's open marks it).
-  CHECK(acq::Catalog::open_read_only(db).scans()[1].state == acq::CatalogState::kRunning);
+  CHECK(acq::Catalog::open_read_only(db).scans()[1].state == acq::ScanState::kRunning);
   r = scanmesh_cli(dir, {"scans", "--catalog", (dir / "none.sqlite").string()});
   CHECK(r.status == 3);
   CHECK_THAT(r.err, Catch::Contains("none.sqlite") && Catch::Contains("no such file"));

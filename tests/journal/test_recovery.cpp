@@ -334,7 +334,7 @@ TEST_CASE("A full disk (RLIMIT_FSIZE) stops the journal with an error naming it;
   // The catalog says why the scan stopped.
   const auto scans = acq::Catalog::open_read_only(db).scans();
   REQUIRE(scans.size() == 1);
-  CHECK(scans[0].state == acq::CatalogState::kFailed);
+  CHECK(scans[0].state == acq::ScanState::kFailed);
   CHECK_THAT(scans[0].stop_reason,
              Catch::Contains(p.string()) && Catch::Contains("File too large"));
   CHECK(scans[0].samples == acked);

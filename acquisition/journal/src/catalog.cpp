@@ -58,9 +58,8 @@ CREATE TABLE output_files (
 );
 )sql";
 
-constexpr std::array kStates{CatalogState::kRunning,   CatalogState::kPaused,
-                             CatalogState::kCompleted, CatalogState::kStopped,
-                             CatalogState::kFailed,    CatalogState::kInterrupted};
+constexpr std::array kStates{ScanState::kRunning, ScanState::kPaused, ScanState::kCompleted,
+                             ScanState::kStopped, ScanState::kFailed, ScanState::kInterrupted};
 
 int user_version(const Database& db) {
   Statement s(db, "PRAGMA user_version");
@@ -78,26 +77,26 @@ bool journal_in_use(const std::string& path) {
 
 }  // namespace
 
-std::string_view to_string(CatalogState state) {
+std::string_view to_string(ScanState state) {
   switch (state) {
-    case CatalogState::kRunning:
+    case ScanState::kRunning:
       return "running";
-    case CatalogState::kPaused:
+    case ScanState::kPaused:
       return "paused";
-    case CatalogState::kCompleted:
+    case ScanState::kCompleted:
       return "completed";
-    case CatalogState::kStopped:
+    case ScanState::kStopped:
       return "stopped";
-    case CatalogState::kFailed:
+    case ScanState::kFailed:
       return "failed";
-    case CatalogState::kInterrupted:
+    case ScanState::kInterrupted:
       return "interrupted";
   }
   return "failed";
 }
 
-std::optional<CatalogState> catalog_state_from_string(std::string_view word) {
-  for (const CatalogState s : kStates)
+std::optional<ScanState> scan_state_from_string(std::string_view word) {
+  for (const ScanState s : kStates)
     if (to_string(s) == word) return s;
   return std::nullopt;
 }
@@ -131,11 +130,11 @@ struct Catalog::Impl {
     if (read_only) throw CatalogError("catalog " + path.string() + ": opened read-only");
   }
 
-  CatalogState state_of(std::int64_t id) const {
+  ScanState state_of(std::int64_t id) const {
     Statement s(db, "SELECT state FROM scans WHERE id = ?");
     s.bind(1, id);
     if (!s.step("reading a scan")) refuse(id, "no such scan");
-    return catalog_state_from_string(s.text(0)).value_or(CatalogState::kFailed);
+    return scan_state_from_string(s.text(0)).value_or(ScanState::kFailed);
   }
 
   void create_schema() {
@@ -255,8 +254,8 @@ void Catalog::set_paused(std::int64_t id, bool paused, WallTime now) {
   Impl& c = *impl_;
   c.require_writable();
   Transaction t(c.db);
-  const CatalogState s = c.state_of(id);
-  if (s != CatalogState::kRunning && s != CatalogState::kPaused)
+  const ScanState s = c.state_of(id);
+  if (s != ScanState::kRunning && s != ScanState::kPaused)
     c.refuse(id, "is " + std::string(to_string(s)) + "; only a running scan pauses or resumes");
   Statement u(c.db, "UPDATE scans SET state = ?, updated_at = ? WHERE id = ?");
   u.bind(1, paused ? "paused" : "running").bind(2, iso_time(now)).bind(3, id);
@@ -277,17 +276,16 @@ void Catalog::update_counts(std::int64_t id, std::uint64_t samples, std::uint64_
   if (sqlite3_changes(c.db.get()) == 0) c.refuse(id, "no such scan");
 }
 
-void Catalog::finish(std::int64_t id, CatalogState state, const std::string& reason,
+void Catalog::finish(std::int64_t id, ScanState state, const std::string& reason,
                      std::uint64_t samples, std::uint64_t points, WallTime now) {
   Impl& c = *impl_;
   c.require_writable();
-  if (state != CatalogState::kCompleted && state != CatalogState::kStopped &&
-      state != CatalogState::kFailed)
+  if (state != ScanState::kCompleted && state != ScanState::kStopped && state != ScanState::kFailed)
     c.refuse(id,
              "a scan finishes completed, stopped or failed, not " + std::string(to_string(state)));
   Transaction t(c.db);
-  const CatalogState s = c.state_of(id);
-  if (s != CatalogState::kRunning && s != CatalogState::kPaused)
+  const ScanState s = c.state_of(id);
+  if (s != ScanState::kRunning && s != ScanState::kPaused)
     c.refuse(id, "is " + std::string(to_string(s)) + " already");
   const std::string at = iso_time(now);
   Statement u(c.db,
@@ -342,8 +340,8 @@ int Catalog::resume(std::int64_t id, const std::filesystem::path& journal, WallT
   Impl& c = *impl_;
   c.require_writable();
   Transaction t(c.db);
-  const CatalogState s = c.state_of(id);
-  if (s != CatalogState::kInterrupted)
+  const ScanState s = c.state_of(id);
+  if (s != ScanState::kInterrupted)
     c.refuse(id, "is " + std::string(to_string(s)) + "; only an interrupted scan resumes");
   Statement open(c.db,
                  "SELECT COUNT(*), COALESCE(MAX(segment), 0) FROM journal_segments WHERE scan_id "
@@ -376,8 +374,8 @@ void Catalog::close_interrupted(std::int64_t id, const std::string& reason, Wall
   Impl& c = *impl_;
   c.require_writable();
   Transaction t(c.db);
-  const CatalogState s = c.state_of(id);
-  if (s != CatalogState::kInterrupted)
+  const ScanState s = c.state_of(id);
+  if (s != ScanState::kInterrupted)
     c.refuse(id, "is " + std::string(to_string(s)) + "; only an interrupted scan is closed so");
   const std::string at = iso_time(now);
   Statement u(c.db,
@@ -413,7 +411,7 @@ ScanRecord read_row(const Database& db, Statement& s) {
   ScanRecord r;
   r.id = s.int64(0);
   r.name = s.text(1);
-  r.state = catalog_state_from_string(s.text(2)).value_or(CatalogState::kFailed);
+  r.state = scan_state_from_string(s.text(2)).value_or(ScanState::kFailed);
   r.started_at = s.text(3);
   r.stopped_at = s.text(4);
   r.updated_at = s.text(5);
@@ -470,7 +468,7 @@ std::vector<JournalRecovery> recover_interrupted(Catalog& catalog, std::int64_t 
   if (!scan)
     throw CatalogError("catalog " + catalog.path().string() + ": scan " + std::to_string(id) +
                        ": no such scan");
-  if (scan->state != CatalogState::kInterrupted)
+  if (scan->state != ScanState::kInterrupted)
     throw CatalogError("catalog " + catalog.path().string() + ": scan " + std::to_string(id) +
                        ": is " + std::string(to_string(scan->state)) + ", not interrupted");
   std::vector<JournalRecovery> reports;

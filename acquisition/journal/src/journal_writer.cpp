@@ -118,23 +118,16 @@ struct JournalWriter::Impl {
                         std::string(to_string(kind)) + " channels");
   }
 
-  void write_pose(std::uint16_t id, std::uint64_t seq, drivers::Timestamp t,
-                  const drivers::StagePose& pose, bool probe) {
-    const mcap::MessageHeader h{id, sequence[id]++, log_time(t.ns), non_negative(t.ns)};
-    auto out = writer.add_message(h, kPoseMessageBytes, 1);
-    if (probe) {
-      drivers::ProbeTrigger g;
-      g.seq = seq;
-      g.t = t;
-      g.pose = pose;
-      encode_probe(g, out.data());
-    } else {
-      drivers::StageSample s;
-      s.seq = seq;
-      s.t = t;
-      s.pose = pose;
-      encode_stage(s, out.data());
-    }
+  void write_stage(std::uint16_t id, const drivers::StageSample& s) {
+    const mcap::MessageHeader h{id, sequence[id]++, log_time(s.t.ns), non_negative(s.t.ns)};
+    encode_stage(s, writer.add_message(h, kStageMessageBytes, 1).data());
+    ++written;
+    writer.flush_if_due();
+  }
+
+  void write_probe(std::uint16_t id, const drivers::ProbeTrigger& p) {
+    const mcap::MessageHeader h{id, sequence[id]++, log_time(p.t.ns), non_negative(p.t.ns)};
+    encode_probe(p, writer.add_message(h, kProbeMessageBytes, 1).data());
     ++written;
     writer.flush_if_due();
   }
@@ -239,12 +232,12 @@ void JournalWriter::write_sensor(SensorChannel channel,
 
 void JournalWriter::write_stage(StageChannel channel, const drivers::StageSample& sample) {
   impl_->check_channel(channel.id, ChannelKind::kStage, "write_stage");
-  impl_->write_pose(channel.id, sample.seq, sample.t, sample.pose, false);
+  impl_->write_stage(channel.id, sample);
 }
 
 void JournalWriter::write_probe(ProbeChannel channel, const drivers::ProbeTrigger& trigger) {
   impl_->check_channel(channel.id, ChannelKind::kProbe, "write_probe");
-  impl_->write_pose(channel.id, trigger.seq, trigger.t, trigger.pose, true);
+  impl_->write_probe(channel.id, trigger);
 }
 
 void JournalWriter::write_event(drivers::Timestamp t, const nlohmann::json& event) {
@@ -261,8 +254,8 @@ nlohmann::json parse_record(const std::filesystem::path& file, std::string_view 
                             const char* what) {
   auto j = nlohmann::json::parse(text, nullptr, false);
   if (j.is_discarded())
-    throw ConfigError("journal " + file.string() + ": the " + what + " is not JSON: " +
-                      std::string(text.substr(0, 80)));
+    throw ConfigError("journal " + file.string() + ": the " + what +
+                      " is not JSON: " + std::string(text.substr(0, 80)));
   return j;
 }
 

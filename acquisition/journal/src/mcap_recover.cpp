@@ -44,15 +44,17 @@ RecoveryReport recover_file(File& file, ScanVisitor* visitor) {
     cut = 0;
     crc = 0;
     out.append(std::as_bytes(std::span(kMagic)));
-    put_header(out, "x-scanmesh", "scanmesh journal 1 (recovered)");
+    put_header(out, "x-scanmesh", "scanmesh journal 2 (recovered)");
   }
   std::vector<ChunkInfo> chunks = s.chunks;
   // The chunk that ends at the cut gets its message indexes first, right after it (where a
   // reader looks for them); the others follow in chunk order.
   std::vector<std::size_t> order;
   for (const auto& [i, bytes] : extras.missing_indexes) {
-    if (chunks[i].offset + chunks[i].length == cut) order.insert(order.begin(), i);
-    else order.push_back(i);
+    if (chunks[i].offset + chunks[i].length == cut)
+      order.insert(order.begin(), i);
+    else
+      order.push_back(i);
   }
   for (const std::size_t i : order) {
     const std::vector<std::byte>& bytes = extras.missing_indexes.at(i);

@@ -93,8 +93,9 @@ void put_column(std::byte* cdr, const SensorLayout::Column& col,
   for (std::size_t i = 0; i < col.count; ++i, p += sizeof(T)) store<T>(p, get(samples[i]));
 }
 
+/// The part StageSample and ProbeTrigger share: seq, t, the pose, t_device (CDR offsets 0-55).
 void encode_pose(std::uint64_t seq, drivers::Timestamp t, const drivers::StagePose& pose,
-                 std::byte* out) {
+                 const std::optional<drivers::Timestamp>& t_device, std::byte* out) {
   std::memcpy(out, kCdrLe, kEncapsulation);
   std::byte* p = out + kEncapsulation;
   store(p, seq);
@@ -103,12 +104,15 @@ void encode_pose(std::uint64_t seq, drivers::Timestamp t, const drivers::StagePo
   store(p + 24, pose.y_mm);
   store(p + 32, pose.z_mm);
   store(p + 40, pose.a_rad);
+  store(p + 48, t_device ? t_device->ns : kNoDeviceTime);
 }
 
+/// Journal 1 wrote seq, t and the pose only (52 bytes): `full` says whether t_device follows.
 bool decode_pose(std::span<const std::byte> data, std::uint64_t& seq, drivers::Timestamp& t,
-                 drivers::StagePose& pose) {
-  if (data.size() < kPoseMessageBytes || data[0] != std::byte{0} || data[1] != std::byte{1})
-    return false;
+                 drivers::StagePose& pose, std::optional<drivers::Timestamp>& t_device, bool& full,
+                 std::size_t full_size) {
+  constexpr std::size_t kJournal1 = kEncapsulation + 8 * 6;
+  if (data.size() < kJournal1 || data[0] != std::byte{0} || data[1] != std::byte{1}) return false;
   const std::byte* p = data.data() + kEncapsulation;
   seq = load<std::uint64_t>(p);
   t.ns = load<std::int64_t>(p + 8);
@@ -116,7 +120,45 @@ bool decode_pose(std::span<const std::byte> data, std::uint64_t& seq, drivers::T
   pose.y_mm = load<double>(p + 24);
   pose.z_mm = load<double>(p + 32);
   pose.a_rad = load<double>(p + 40);
+  full = data.size() >= full_size;
+  if (full) {
+    const auto td = load<std::int64_t>(p + 48);
+    if (td != kNoDeviceTime) t_device = drivers::Timestamp{td};
+  }
   return true;
+}
+
+std::uint8_t stage_status_code(drivers::StageStatus s) {
+  switch (s) {
+    case drivers::StageStatus::kIdle:
+      return 0;
+    case drivers::StageStatus::kMoving:
+      return 1;
+    case drivers::StageStatus::kHoming:
+      return 2;
+    case drivers::StageStatus::kAlarm:
+      return 3;
+    case drivers::StageStatus::kLost:
+      return 4;
+  }
+  return 0;
+}
+
+std::optional<drivers::StageStatus> stage_status_from_code(std::uint8_t c) {
+  switch (c) {
+    case 0:
+      return drivers::StageStatus::kIdle;
+    case 1:
+      return drivers::StageStatus::kMoving;
+    case 2:
+      return drivers::StageStatus::kHoming;
+    case 3:
+      return drivers::StageStatus::kAlarm;
+    case 4:
+      return drivers::StageStatus::kLost;
+    default:
+      return std::nullopt;
+  }
 }
 
 }  // namespace
@@ -143,12 +185,20 @@ int64[] t_device_ns   # the sensor's own clock, ns; -9223372036854775808 (INT64_
 
 std::string_view stage_schema_text() {
   return R"(# One position report of the motion stage (drivers::StageSample).
-uint64 seq      # per stage, +1 per report
-int64 t_ns      # host monotonic time of the position, ns
+uint8 STATUS_IDLE=0
+uint8 STATUS_MOVING=1
+uint8 STATUS_HOMING=2
+uint8 STATUS_ALARM=3
+uint8 STATUS_LOST=4
+
+uint64 seq          # per stage, +1 per report
+int64 t_ns          # host monotonic time of the position, ns
 float64 x_mm
 float64 y_mm
 float64 z_mm
-float64 a_rad   # rotary table angle, counter-clockwise about +z seen from above
+float64 a_rad       # rotary table angle, counter-clockwise about +z seen from above
+int64 t_device_ns   # the controller's own clock, ns; -9223372036854775808 (INT64_MIN): none
+uint8 status        # what the stage was doing: STATUS_*
 )";
 }
 
@@ -156,11 +206,19 @@ std::string_view probe_schema_text() {
   return R"(# A touch-probe trigger: the stage position latched at the instant of contact
 # (drivers::ProbeTrigger).
 uint64 seq
-int64 t_ns      # host monotonic time of the latch, ns
-float64 x_mm
+int64 t_ns          # host monotonic time of the latch, ns
+float64 x_mm        # the latched axes: the probe tip centre at contact (machine frame)
 float64 y_mm
 float64 z_mm
-float64 a_rad   # rotary table angle, counter-clockwise about +z seen from above
+float64 a_rad       # rotary table angle, counter-clockwise about +z seen from above
+int64 t_device_ns   # the controller's clock at the latch, ns; INT64_MIN: none
+bool has_surface    # the controller gave its own compensated surface point (a CMM)
+float64 surface_x_mm
+float64 surface_y_mm
+float64 surface_z_mm
+float64 surface_i   # unit surface normal it compensated along
+float64 surface_j
+float64 surface_k
 )";
 }
 
@@ -281,21 +339,52 @@ bool decode_sensor(std::span<const std::byte> data, std::vector<drivers::SensorS
 }
 
 void encode_stage(const drivers::StageSample& s, std::byte* out) {
-  encode_pose(s.seq, s.t, s.pose, out);
+  encode_pose(s.seq, s.t, s.pose, s.t_device, out);
+  store(out + kEncapsulation + 56, stage_status_code(s.status));
 }
+
 void encode_probe(const drivers::ProbeTrigger& p, std::byte* out) {
-  encode_pose(p.seq, p.t, p.pose, out);
+  encode_pose(p.seq, p.t, p.pose, p.t_device, out);
+  std::byte* c = out + kEncapsulation;
+  std::memset(c + 56, 0, 8);  // has_surface and the padding before the next float64
+  store(c + 56, static_cast<std::uint8_t>(p.surface ? 1 : 0));
+  const drivers::SurfacePoint s = p.surface.value_or(drivers::SurfacePoint{});
+  store(c + 64, s.x_mm);
+  store(c + 72, s.y_mm);
+  store(c + 80, s.z_mm);
+  store(c + 88, s.i);
+  store(c + 96, s.j);
+  store(c + 104, s.k);
 }
 
 std::optional<drivers::StageSample> decode_stage(std::span<const std::byte> data) {
   drivers::StageSample s;
-  if (!decode_pose(data, s.seq, s.t, s.pose)) return std::nullopt;
+  bool full = false;
+  if (!decode_pose(data, s.seq, s.t, s.pose, s.t_device, full, kStageMessageBytes))
+    return std::nullopt;
+  if (full) {
+    const auto st = stage_status_from_code(load<std::uint8_t>(data.data() + kEncapsulation + 56));
+    if (!st) return std::nullopt;
+    s.status = *st;
+  }
   return s;
 }
 
 std::optional<drivers::ProbeTrigger> decode_probe(std::span<const std::byte> data) {
   drivers::ProbeTrigger p;
-  if (!decode_pose(data, p.seq, p.t, p.pose)) return std::nullopt;
+  bool full = false;
+  if (!decode_pose(data, p.seq, p.t, p.pose, p.t_device, full, kProbeMessageBytes))
+    return std::nullopt;
+  if (full) {
+    const std::byte* c = data.data() + kEncapsulation;
+    const auto has = load<std::uint8_t>(c + 56);
+    if (has > 1) return std::nullopt;
+    if (has == 1) {
+      p.surface =
+          drivers::SurfacePoint{load<double>(c + 64), load<double>(c + 72), load<double>(c + 80),
+                                load<double>(c + 88), load<double>(c + 96), load<double>(c + 104)};
+    }
+  }
   return p;
 }
 

@@ -43,7 +43,10 @@ bool decode_sensor(std::span<const std::byte> data, std::vector<drivers::SensorS
 /// The number of samples a message claims (its first column's length), without decoding.
 std::optional<std::uint32_t> sensor_message_count(std::span<const std::byte> data);
 
-inline constexpr std::size_t kPoseMessageBytes = 4 + 8 * 6;
+/// StageSample: seq, t, the pose, t_device, status (journal 1 wrote the first six fields only).
+inline constexpr std::size_t kStageMessageBytes = 4 + 8 * 7 + 1;
+/// ProbeTrigger: seq, t, the pose, t_device, has_surface, the surface point and normal.
+inline constexpr std::size_t kProbeMessageBytes = 4 + 8 * 7 + 8 + 8 * 6;
 void encode_stage(const drivers::StageSample& s, std::byte* out);
 void encode_probe(const drivers::ProbeTrigger& p, std::byte* out);
 std::optional<drivers::StageSample> decode_stage(std::span<const std::byte> data);

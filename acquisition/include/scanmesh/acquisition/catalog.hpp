@@ -29,12 +29,12 @@ class CatalogError : public Error {
 /// Where the daemon keeps its catalog unless told otherwise (systemd's StateDirectory=scanmesh).
 inline constexpr std::string_view kDefaultCatalogPath = "/var/lib/scanmesh/catalog.sqlite";
 
-/// A scan's state as the catalog keeps it (the pipeline's live ScanState has more steps; the
-/// catalog adds `interrupted`: the process that ran the scan died).
-enum class CatalogState { kRunning, kPaused, kCompleted, kStopped, kFailed, kInterrupted };
+/// A scan's state as the catalog keeps it (the pipeline's live PipelineState has more steps;
+/// the catalog adds `interrupted`: the process that ran the scan died).
+enum class ScanState { kRunning, kPaused, kCompleted, kStopped, kFailed, kInterrupted };
 
-std::string_view to_string(CatalogState state);
-std::optional<CatalogState> catalog_state_from_string(std::string_view word);
+std::string_view to_string(ScanState state);
+std::optional<ScanState> scan_state_from_string(std::string_view word);
 
 using WallTime = std::chrono::system_clock::time_point;
 
@@ -58,7 +58,7 @@ struct OutputFile {
 struct ScanRecord {
   std::int64_t id = 0;
   std::string name;
-  CatalogState state = CatalogState::kRunning;
+  ScanState state = ScanState::kRunning;
   std::string started_at;
   std::string stopped_at;  ///< empty unless completed, stopped, failed or interrupted
   std::string updated_at;
@@ -109,7 +109,7 @@ class Catalog {
   void update_counts(std::int64_t id, std::uint64_t samples, std::uint64_t points, WallTime now);
   /// Ends a running or paused scan: completed, stopped or failed, with the reason; closes its
   /// open segment with the samples it holds.
-  void finish(std::int64_t id, CatalogState state, const std::string& reason, std::uint64_t samples,
+  void finish(std::int64_t id, ScanState state, const std::string& reason, std::uint64_t samples,
               std::uint64_t points, WallTime now);
   /// Marks a segment closed or recovered with its acknowledged samples and a note.
   void close_segment(std::int64_t id, int segment, std::string_view state, std::uint64_t samples,

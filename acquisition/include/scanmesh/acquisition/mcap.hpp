@@ -114,7 +114,7 @@ struct WriterOptions {
   /// writing and the disk overlap and an fdatasync finds little left to do. 0: never.
   std::uint64_t writeback_bytes = std::uint64_t{4} << 20;
   std::string profile = "x-scanmesh";
-  std::string library = "scanmesh journal 1";
+  std::string library = "scanmesh journal 2";
 
   /// Every bad field, one message each (empty: valid).
   [[nodiscard]] std::vector<std::string> validate() const;
