@@ -37,9 +37,13 @@ int main() {
                                                      : (f.bytes / f.seconds) / f.device_bytes_per_s;
     bool pass = factor >= 50;
     if (f.required_mb_per_s > 0 && mbps < f.required_mb_per_s) pass = false;
+    if (f.required_samples_per_s > 0 && sps < f.required_samples_per_s) pass = false;
     all_pass = all_pass && pass;
     char target[64];
-    if (f.required_mb_per_s > 0)
+    if (f.required_samples_per_s > 0)
+      std::snprintf(target, sizeof target, ">=50x,>=%.0fM/s %s", f.required_samples_per_s / 1e6,
+                    pass ? "PASS" : "MISS");
+    else if (f.required_mb_per_s > 0)
       std::snprintf(target, sizeof target, ">=50x,>=%.0fMB/s %s", f.required_mb_per_s,
                     pass ? "PASS" : "MISS");
     else

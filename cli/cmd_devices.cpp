@@ -63,6 +63,12 @@ int run_devices(bool as_json) {
                                     {"serial_number", d.serial}});
     }
     if (!usb_error.empty()) out["usb_error"] = usb_error;
+    out["stage_drivers"] = json::array();
+    for (const auto& d : drv::stage_drivers())
+      out["stage_drivers"].push_back({{"driver", d.name},
+                                      {"models", d.models},
+                                      {"transport", d.transport},
+                                      {"default_baud", d.default_baud}});
     std::cout << out.dump() << "\n";
     return kExitOk;
   }
@@ -84,6 +90,10 @@ int run_devices(bool as_json) {
               << (d.serial.empty() ? "" : "  serial " + d.serial) << "\n";
   }
   if (!usb_error.empty()) std::cout << "  (" << usb_error << ")\n";
+  const auto stages = drv::stage_drivers();
+  std::cout << "stage drivers: " << stages.size() << "\n";
+  for (const auto& d : stages)
+    std::cout << "  " << d.name << "  " << d.transport << "  " << d.models << "\n";
   return kExitOk;
 }
 

@@ -1,5 +1,7 @@
 // `scanmesh reconstruct`: read point files, reconstruct a manifold mesh, write it.
 // SPDX-License-Identifier: MIT
+#include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -18,6 +20,7 @@
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/preview/render.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/incremental.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 
 namespace scanmesh::cli {
@@ -46,6 +49,14 @@ struct ReconstructArgs {
   recon::SharpenOptions sharpen_options;
   std::string preview;
   std::string up = "z";
+  std::size_t stream = 0;  ///< --stream N: the incremental path, N points a batch (0: batch path)
+};
+
+/// One scan as read: its points in file order, each one's direction towards its sensor (when
+/// known) and, for a range scan, its rows (vertex indices a row: fed row by row with --stream).
+struct Scan {
+  std::vector<recon::Vec3> points, towards;
+  std::vector<std::vector<std::uint32_t>> rows;
 };
 
 /// Parses --cube: "auto", "none" or a positive size in input units.
@@ -69,13 +80,34 @@ void apply_cube(const std::string& text, recon::ReconstructOptions& o) {
   }
 }
 
+/// meshio::read_points_and_faces, and for a .ply its extras: each header line skipped is warned
+/// about on stderr (naming it), and a range scan's rows go to `rows` when given.
+recon::Mesh read_with_extras(const std::filesystem::path& in,
+                             std::vector<std::vector<std::uint32_t>>* rows) {
+  std::string ext = in.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".ply") {
+    meshio::PlyExtras extras;
+    try {
+      recon::Mesh mesh = meshio::read_ply(in, extras);
+      for (const auto& w : extras.warnings) std::fprintf(stderr, "scanmesh: warning: %s\n", w.c_str());
+      if (rows != nullptr) *rows = std::move(extras.range_rows);
+      return mesh;
+    } catch (const InputError&) {
+      // Faces (or a range grid) that do not parse do not spoil the points: as below.
+    }
+  }
+  return meshio::read_points_and_faces(in);
+}
+
 /// One INPUT's points. A mesh file's vertices are its points; when they do not sample its
 /// surface as a scan does (a CAD export: few vertices, long edges across flat faces, slivers),
 /// `notes` gets a note saying so and how to sample the surface instead: the flat faces have no
 /// points, and the front leaves loops and wrong handles there (the casting's mesh: genus 8 and
 /// 5 loops, against exactly 9 and none from a sample of its surface).
-recon::PointCloud read_input(const std::string& in, std::vector<std::string>& notes) {
-  recon::Mesh mesh = meshio::read_points_and_faces(in);
+recon::PointCloud read_input(const std::string& in, std::vector<std::string>& notes,
+                             std::vector<std::vector<std::uint32_t>>* rows = nullptr) {
+  recon::Mesh mesh = read_with_extras(in, rows);
   if (!mesh.triangles.empty()) {  // not a range scan or a bare vertex list
     const recon::MeshReport r = recon::analyze(mesh);
     if (!recon::scan_like_vertices(r)) {
@@ -101,10 +133,8 @@ recon::PointCloud read_input(const std::string& in, std::vector<std::string>& no
 /// `towards_sensor` gets, for each point, its scan's +z axis in world coordinates: a range scan
 /// looks at the part along -z of its own frame (the Stanford scans: 99 % of bun000's surface
 /// faces +z). `notes` gets read_input's notes on the inputs.
-std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
-                                     std::vector<recon::Vec3>& towards_sensor,
-                                     std::vector<std::string>& notes) {
-  std::vector<recon::Vec3> all;
+std::vector<Scan> load_scans(const ReconstructArgs& args, std::vector<std::string>& notes) {
+  std::vector<Scan> scans;
   if (!args.conf.empty()) {
     const auto entries = meshio::read_conf(args.conf);
     std::map<std::string, const meshio::ConfEntry*> by_name;
@@ -123,9 +153,10 @@ std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
       }
     }
     for (const auto& [path, entry] : jobs) {
+      Scan scan;
       recon::PointCloud c;
       try {
-        c = meshio::read_points(path);
+        c.points = read_with_extras(path, &scan.rows).vertices;
       } catch (const InputError& e) {
         if (!args.inputs.empty()) throw;
         // The path came from the registration file, resolved against its folder: say so.
@@ -134,18 +165,34 @@ std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
       const recon::Vec3 sensor =
           entry->to_world(recon::Vec3::UnitZ()) - entry->to_world(recon::Vec3::Zero());
       for (const auto& p : c.points) {
-        all.push_back(entry->to_world(p));
-        towards_sensor.push_back(sensor);
+        scan.points.push_back(entry->to_world(p));
+        scan.towards.push_back(sensor);
       }
+      scans.push_back(std::move(scan));
     }
   } else {
     for (const auto& in : args.inputs) {
-      const recon::PointCloud c = read_input(in, notes);
-      all.insert(all.end(), c.points.begin(), c.points.end());
+      Scan scan;
+      scan.points = read_input(in, notes, &scan.rows).points;
+      scans.push_back(std::move(scan));
     }
+  }
+  return scans;
+}
+
+/// Every scan merged (the batch path's input).
+std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
+                                     std::vector<recon::Vec3>& towards_sensor,
+                                     std::vector<std::string>& notes) {
+  std::vector<recon::Vec3> all;
+  for (const Scan& s : load_scans(args, notes)) {
+    all.insert(all.end(), s.points.begin(), s.points.end());
+    towards_sensor.insert(towards_sensor.end(), s.towards.begin(), s.towards.end());
   }
   return all;
 }
+
+int run_stream(const ReconstructArgs& args, const recon::ReconstructOptions& opt);
 
 int run_reconstruct(const ReconstructArgs& args) {
   using Clock = std::chrono::steady_clock;
@@ -172,6 +219,7 @@ int run_reconstruct(const ReconstructArgs& args) {
 
   if (!args.sensor.empty() && !args.conf.empty())
     throw ConfigError("--sensor and --conf both say where the sensor was: give one");
+  if (args.stream > 0) return run_stream(args, opt);
   std::vector<recon::Vec3> towards_sensor;
   std::vector<std::string> notes;  // about the inputs and the result: on stderr, and in the JSON
   const std::vector<recon::Vec3> points = load_inputs(args, towards_sensor, notes);
@@ -374,6 +422,190 @@ int run_reconstruct(const ReconstructArgs& args) {
   return kExitOk;
 }
 
+/// --progress with --stream: a bar on stderr, redrawn at most ten times a second.
+class ProgressBar {
+ public:
+  explicit ProgressBar(bool on, std::size_t total) : on_(on), total_(total) {}
+  void update(std::size_t done, const recon::IncrementalStats& st, bool force = false) {
+    if (!on_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (!force && now - last_ < std::chrono::milliseconds(100)) return;
+    last_ = now;
+    const double f = total_ > 0 ? static_cast<double>(done) / static_cast<double>(total_) : 1.0;
+    const int width = 30, full = static_cast<int>(f * width + 0.5);
+    std::fprintf(stderr, "\rscanmesh: [%s%s] %3.0f %%  %zu/%zu points, %zu triangles, %zu cubes unmeshed",
+                 std::string(static_cast<std::size_t>(full), '#').c_str(),
+                 std::string(static_cast<std::size_t>(width - full), '.').c_str(), 100.0 * f, done,
+                 total_, st.triangles, st.unmeshed_cubes);
+    std::fflush(stderr);
+  }
+  void end() {
+    if (on_) std::fprintf(stderr, "\n");
+  }
+
+ private:
+  bool on_;
+  std::size_t total_;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+/// --stream N: the incremental path. Each scan in turn (a turntable delivers them one after
+/// another), fed N points a batch in file order, or row by row for a range scan with a
+/// range_grid; a consumer takes the delta after every batch, as the daemon will.
+int run_stream(const ReconstructArgs& args, const recon::ReconstructOptions& opt) {
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  auto secs = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double>(b - a).count();
+  };
+  recon::IncrementalOptions io;
+  io.reconstruct = opt;
+  // The on-request passes run on the finished mesh (below), as the batch path runs them last.
+  io.reconstruct.fill.max_edges = 0;
+  io.reconstruct.denoise = false;
+  io.reconstruct.sharpen = false;
+  std::vector<std::string> notes;
+  std::vector<Scan> scans = load_scans(args, notes);
+  for (const auto& note : notes) std::fprintf(stderr, "scanmesh: note: %s\n", note.c_str());
+  std::size_t total = 0;
+  for (Scan& sc : scans) {
+    total += sc.points.size();
+    if (args.sensor.size() == 3) {
+      const recon::Vec3 at(args.sensor[0], args.sensor[1], args.sensor[2]);
+      sc.towards.resize(sc.points.size());
+      for (std::size_t i = 0; i < sc.points.size(); ++i) sc.towards[i] = at - sc.points[i];
+    }
+  }
+  if (total == 0) {
+    std::string names;
+    for (const auto& in : args.inputs) names += (names.empty() ? "" : ", ") + in;
+    throw InputError(names + ": no points in the input");
+  }
+  const double read_seconds = secs(t0, Clock::now());
+  const auto clock_start = Clock::now();
+  recon::IncrementalReconstructor rec(io, [clock_start] {
+    return std::chrono::duration<double>(Clock::now() - clock_start).count();
+  });
+  ProgressBar bar(args.progress, total);
+  std::size_t batches = 0, deltas = 0, fed = 0;
+  double max_batch = 0, delta_seconds = 0;
+  std::vector<recon::Vec3> pts, dirs;
+  auto feed = [&](std::span<const recon::Vec3> p, std::span<const recon::Vec3> d) {
+    const auto a = Clock::now();
+    if (d.empty()) {
+      rec.add(p);
+    } else {
+      rec.add(p, d, recon::SensorData::kDirection);
+    }
+    const auto b = Clock::now();
+    max_batch = std::max(max_batch, secs(a, b));
+    ++batches;
+    fed += p.size();
+    if (!rec.take_delta().empty()) ++deltas;
+    delta_seconds += secs(b, Clock::now());
+    bar.update(fed, rec.stats());
+  };
+  for (const Scan& sc : scans) {
+    const bool dir = !sc.towards.empty();
+    if (!sc.rows.empty()) {
+      for (const auto& row : sc.rows) {
+        if (row.empty()) continue;
+        pts.clear();
+        dirs.clear();
+        for (std::uint32_t v : row) {
+          pts.push_back(sc.points[v]);
+          if (dir) dirs.push_back(sc.towards[v]);
+        }
+        feed(pts, dirs);
+      }
+      continue;
+    }
+    for (std::size_t i = 0; i < sc.points.size(); i += args.stream) {
+      const std::size_t n = std::min(args.stream, sc.points.size() - i);
+      feed(std::span<const recon::Vec3>(sc.points.data() + i, n),
+           dir ? std::span<const recon::Vec3>(sc.towards.data() + i, n) : std::span<const recon::Vec3>());
+    }
+  }
+  const auto f0 = Clock::now();
+  recon::IncrementalResult res = rec.finish();
+  if (!rec.take_delta().empty()) ++deltas;
+  const double finish_seconds = secs(f0, Clock::now());
+  bar.update(fed, res.stats, true);
+  bar.end();
+  recon::DenoiseStats denoise;
+  recon::SharpenStats sharpen;
+  recon::FillStats fill;
+  if (opt.denoise) denoise = recon::denoise_mesh(res.mesh, opt.denoise_options);
+  if (opt.sharpen) sharpen = recon::sharpen_edges(res.mesh, opt.sharpen_options);
+  if (opt.fill.max_edges > 0) fill = recon::fill_holes(res.mesh, opt.fill);
+  auto t = Clock::now();
+  write_mesh_file(res.mesh, args.output, args.ascii);
+  if (!args.outliers_file.empty()) meshio::write_points_xyz(res.outliers, args.outliers_file);
+  const double write_seconds = secs(t, Clock::now());
+  const recon::MeshReport rep = recon::analyze(res.mesh);
+  if (!args.preview.empty()) {
+    preview::RenderOptions options;
+    options.up = axis_of(args.up);
+    options.title = std::filesystem::path(args.output).filename().string() + ": " +
+                    std::to_string(res.mesh.triangles.size()) + " triangles, streamed";
+    preview::render_mesh_png(res.mesh, args.preview, options);
+  }
+  const double total_seconds = secs(t0, Clock::now());
+  const recon::IncrementalStats& st = res.stats;
+  if (args.json) {
+    nlohmann::json j;
+    j["input_points"] = st.points_in;
+    j["reduced_points"] = res.mesh.vertices.size() + res.outliers.size() - res.far_points;
+    j["vertices"] = res.mesh.vertices.size();
+    j["triangles"] = res.mesh.triangles.size();
+    put_topology(j, rep);
+    j["outliers"] = res.outliers.size();
+    j["far_points"] = res.far_points;
+    j["cube"] = st.cube_mm;
+    j["stream"] = args.stream;
+    j["batches"] = batches;
+    j["max_batch_seconds"] = max_batch;
+    j["finish_seconds"] = finish_seconds;
+    j["deltas"] = deltas;
+    j["reopened_blocks"] = st.reopened_blocks;
+    j["meshing_steps"] = st.meshing_steps;
+    j["meshed_blocks"] = st.meshed_blocks_total;
+    j["settle_to_mesh_p99_seconds"] = st.settle_to_mesh_p99_seconds;
+    j["take_delta_seconds"] = delta_seconds;
+    if (opt.fill.max_edges > 0) put_fill(j, fill);
+    if (opt.denoise) put_denoise(j, denoise);
+    if (opt.sharpen) put_sharpen(j, sharpen);
+    j["output"] = args.output;
+    j["notes"] = notes;
+    if (!args.preview.empty()) j["preview"] = args.preview;
+    j["seconds_total"] = total_seconds;
+    nlohmann::json seconds = {{"read", read_seconds}, {"write", write_seconds}};
+    for (const auto& [k, v] : st.seconds) seconds[k] = v;
+    j["seconds"] = seconds;
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << std::fixed << std::setprecision(3);
+    std::cout << "input points     " << st.points_in << "  (streamed: " << batches
+              << " batches, the largest " << max_batch << " s)\n"
+              << "cube             " << st.cube_mm << "\n"
+              << "vertices         " << res.mesh.vertices.size() << "\n"
+              << "triangles        " << res.mesh.triangles.size() << "\n"
+              << "boundary loops   " << rep.boundary_loops << "\n"
+              << "components       " << rep.components << "\n"
+              << "genus            " << rep.genus << "\n"
+              << "outliers         " << res.outliers.size() << "\n"
+              << "deltas           " << deltas << " (" << st.meshing_steps << " meshing steps, "
+              << st.reopened_blocks << " blocks re-opened)\n"
+              << "manifold         "
+              << (rep.non_manifold_edges == 0 && rep.non_manifold_vertices == 0 ? "yes" : "NO")
+              << ", orientation " << (rep.orientation_consistent ? "consistent" : "INCONSISTENT")
+              << "\n"
+              << "written          " << args.output << "\n"
+              << "seconds          " << total_seconds << " (finish " << finish_seconds << ")\n";
+  }
+  return kExitOk;
+}
+
 }  // namespace
 
 void add_reconstruct_command(CLI::App& app, Runner& run) {
@@ -439,7 +671,13 @@ void add_reconstruct_command(CLI::App& app, Runner& run) {
       ->capture_default_str()
       ->check(CLI::IsMember({"x", "y", "z"}));
   cmd->add_flag("--progress", args->progress,
-                "print each stage on stderr as it starts, with the seconds elapsed");
+                "print each stage on stderr as it starts, with the seconds elapsed (with "
+                "--stream: a live bar)");
+  cmd->add_option("--stream", args->stream,
+                  "feed the points to the incremental reconstruction N at a time, in file order "
+                  "(a .ply range scan with a range_grid row by row; several inputs, or a --conf "
+                  "list, one scan after another)")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 30));
   cmd->callback([args, &run] { run = [args] { return run_reconstruct(*args); }; });
 }
 

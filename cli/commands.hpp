@@ -239,5 +239,6 @@ void add_simulate_command(CLI::App&, Runner&);
 void add_devices_command(CLI::App& app, Runner& run);
 void add_scan_command(CLI::App& app, Runner& run);
 void add_replay_command(CLI::App& app, Runner& run);
+void add_stage_command(CLI::App& app, Runner& run);
 
 }  // namespace scanmesh::cli

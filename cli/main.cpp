@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   cli::add_devices_command(app, run);
   cli::add_scan_command(app, run);
   cli::add_replay_command(app, run);
+  cli::add_stage_command(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -12,6 +12,10 @@
 //            sides).
 // Option bits: 4 --cube none instead of auto, 8 the bulk off, 16 holes of up to 16 edges filled,
 // 32 the sensor directions (+z) given, 64 sharp edges recovered (--sharpen).
+// Bit 128: the incremental path instead (recon/incremental.hpp; bits 4, 16 and 64 ignored): the
+// points fed in batches cut where the bytes say, some fed a second time shifted by a fraction
+// of their spacing after the first pass settled (re-opening meshed blocks); every snapshot
+// must be a valid mesh and the deltas must rebuild the final mesh exactly.
 //
 // Only scanmesh::Error (GeometryError for clouds that cannot make a surface) is an expected
 // outcome. Otherwise the output must keep the core's promises (reconstruct.hpp, recon/README
@@ -30,6 +34,7 @@
 
 #include "scanmesh/common/error.hpp"
 #include "scanmesh/recon/analysis.hpp"
+#include "scanmesh/recon/incremental.hpp"
 #include "scanmesh/recon/intersections.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
 #include "support/shapes.hpp"
@@ -103,6 +108,109 @@ inline recon::ReconstructOptions case_options(std::uint8_t flags) {
   return opt;
 }
 
+namespace detail {
+
+/// The promises of a final mesh (shared by both paths): empty when they hold.
+inline std::string broken_promise(const recon::Mesh& mesh, std::size_t* triangles) {
+  const recon::MeshReport rep = recon::analyze(mesh);
+  if (triangles != nullptr) *triangles = rep.triangles;
+  if (rep.non_manifold_edges != 0) return "non-manifold edges";
+  if (rep.non_manifold_vertices != 0) return "non-manifold vertices";
+  if (!rep.orientation_consistent) return "inconsistent orientation";
+  if (rep.degenerate_triangles != 0) return "degenerate triangles";
+  if (rep.duplicate_triangles != 0) return "duplicate triangles";
+  if (rep.referenced_vertices != rep.vertices) return "unused vertices in the output";
+  if (recon::find_self_intersections(mesh, 0).pairs != 0) return "crossing triangles";
+  return {};
+}
+
+/// The incremental case (option bit 128).
+inline std::string run_incremental_case(const std::uint8_t* data, std::size_t size,
+                                        const std::vector<recon::Vec3>& points,
+                                        std::size_t* triangles) {
+  recon::IncrementalOptions opt;
+  opt.reconstruct = case_options(data[0]);
+  opt.reconstruct.cube_mode = recon::ReconstructOptions::CubeMode::kAuto;
+  opt.reconstruct.fill.max_edges = 0;
+  opt.reconstruct.sharpen = false;
+  opt.spacing_points = 200;
+  opt.settle_interval_points = 64;
+  opt.settle_delay_points = 128;
+  const bool sensors = (data[0] & 32u) != 0;
+  recon::IncrementalReconstructor rec(opt);
+  // Replay of the deltas, by id.
+  std::vector<recon::Vec3> vertices;
+  std::vector<std::pair<std::uint32_t, recon::Triangle>> live;  // sorted by id
+  auto apply = [&](const recon::MeshDelta& d) -> std::string {
+    if (d.first_vertex != vertices.size()) return "delta vertex ids not consecutive";
+    vertices.insert(vertices.end(), d.vertices.begin(), d.vertices.end());
+    for (std::size_t i = 0; i < d.added.size(); ++i) {
+      if (!live.empty() && d.added_ids[i] <= live.back().first) return "delta triangle ids reused";
+      live.emplace_back(d.added_ids[i], d.added[i]);
+    }
+    for (const std::uint32_t id : d.removed) {
+      const auto it = std::lower_bound(live.begin(), live.end(), std::make_pair(id, recon::Triangle{}),
+                                       [](const auto& a, const auto& b) { return a.first < b.first; });
+      if (it == live.end() || it->first != id) return "delta removes an unknown triangle";
+      live.erase(it);
+    }
+    return {};
+  };
+  auto check_snapshot = [&]() -> std::string {
+    const recon::MeshSnapshot snap = rec.snapshot();
+    if (snap.triangle_count() != live.size()) return "snapshot and deltas differ";
+    if (snap.triangle_count() == 0) return {};
+    const recon::MeshReport r = recon::analyze(snap.to_mesh());
+    if (r.non_manifold_edges != 0 || r.non_manifold_vertices != 0) return "non-manifold snapshot";
+    if (!r.orientation_consistent) return "inconsistent snapshot";
+    return {};
+  };
+  // Batch cuts: the bytes after the points, cycled (1-64 points a batch).
+  const std::uint8_t* cuts = data + 2;
+  const std::size_t ncuts = size - 2;
+  std::size_t next_cut = 0;
+  auto feed = [&](const std::vector<recon::Vec3>& pts) -> std::string {
+    for (std::size_t i = 0; i < pts.size();) {
+      const std::size_t n = std::min<std::size_t>(1 + cuts[next_cut++ % ncuts] % 64, pts.size() - i);
+      const std::span<const recon::Vec3> batch(pts.data() + i, n);
+      if (sensors) {
+        const std::vector<recon::Vec3> up(n, recon::Vec3::UnitZ());
+        rec.add(batch, up, recon::SensorData::kDirection);
+      } else {
+        rec.add(batch);
+      }
+      i += n;
+      if (auto e = apply(rec.take_delta()); !e.empty()) return e;
+      if (auto e = check_snapshot(); !e.empty()) return e;
+    }
+    return {};
+  };
+  try {
+    if (auto e = feed(points); !e.empty()) return e;
+    // A second pass over part of the cloud, shifted by a fraction of a unit: re-opening.
+    if ((data[1] & 1u) != 0 && points.size() > 8) {
+      rec.settle_all();
+      if (auto e = apply(rec.take_delta()); !e.empty()) return e;
+      std::vector<recon::Vec3> again(points.begin(), points.begin() + static_cast<std::ptrdiff_t>(points.size() / 2));
+      for (recon::Vec3& p : again) p += recon::Vec3(0.31, 0.17, 0.0) * (1.0 + (data[1] >> 4) / 16.0);
+      if (auto e = feed(again); !e.empty()) return e;
+    }
+    const recon::IncrementalResult r = rec.finish();
+    if (auto e = apply(rec.take_delta()); !e.empty()) return e;
+    if (auto e = broken_promise(r.mesh, triangles); !e.empty()) return e;
+    if (live.size() != r.mesh.triangles.size()) return "deltas do not rebuild the final mesh";
+    for (std::size_t i = 0; i < live.size(); ++i)
+      for (int k = 0; k < 3; ++k)
+        if (vertices[live[i].second[k]] != r.mesh.vertices[r.mesh.triangles[i][k]])
+          return "deltas do not rebuild the final mesh";
+  } catch (const Error&) {
+    // a cloud that cannot make a surface
+  }
+  return {};
+}
+
+}  // namespace detail
+
 /// Runs the case: empty when the promises hold (or the cloud was rejected with an Error),
 /// otherwise the first promise broken. `triangles`, when given, receives the output's
 /// triangle count (0 when rejected).
@@ -111,6 +219,7 @@ inline std::string run_reconstruct_case(const std::uint8_t* data, std::size_t si
   if (triangles != nullptr) *triangles = 0;
   if (size < 2) return {};
   const std::vector<recon::Vec3> points = case_points(data, size);
+  if ((data[0] & 128u) != 0) return detail::run_incremental_case(data, size, points, triangles);
   std::vector<recon::Vec3> towards;
   if ((data[0] & 32u) != 0) towards.assign(points.size(), recon::Vec3::UnitZ());
   try {

@@ -21,6 +21,7 @@ struct CodecFigures {
   double device_bytes_per_s = 0;    ///< fastest byte rate the device can send (baud/10 for 8N1)
   double device_samples_per_s = 0;  ///< fastest sample rate of the device over that link
   double required_mb_per_s = 0;     ///< an absolute target if the issue sets one (0 = none)
+  double required_samples_per_s = 0;  ///< an absolute rate target (reports/s; 0 = none)
 };
 
 using CodecBench = std::function<CodecFigures()>;

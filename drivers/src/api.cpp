@@ -4,6 +4,7 @@
 
 #include "scanmesh/drivers/displacement_sensor.hpp"
 #include "scanmesh/drivers/error.hpp"
+#include "scanmesh/drivers/register_bus.hpp"
 #include "scanmesh/drivers/samples.hpp"
 
 namespace scanmesh::drivers {
@@ -38,6 +39,30 @@ std::optional<SensorStatus> sensor_status_from_string(std::string_view word) {
   return std::nullopt;
 }
 
+std::string_view to_string(StageStatus status) {
+  switch (status) {
+    case StageStatus::kIdle:
+      return "idle";
+    case StageStatus::kMoving:
+      return "moving";
+    case StageStatus::kHoming:
+      return "homing";
+    case StageStatus::kAlarm:
+      return "alarm";
+    case StageStatus::kLost:
+      return "lost";
+  }
+  return "unknown";
+}
+
+std::optional<StageStatus> stage_status_from_string(std::string_view word) {
+  for (auto s : {StageStatus::kIdle, StageStatus::kMoving, StageStatus::kHoming,
+                 StageStatus::kAlarm, StageStatus::kLost}) {
+    if (to_string(s) == word) return s;
+  }
+  return std::nullopt;
+}
+
 std::string_view to_string(DeviceState state) {
   switch (state) {
     case DeviceState::kClosed:
@@ -66,6 +91,11 @@ std::string_view to_string(DeviceErrorKind kind) {
       return "not_found";
   }
   return "unknown";
+}
+
+void RegisterBus::select_unit(int unit) {
+  throw DeviceError(DeviceErrorKind::kProtocol, name(), "select unit " + std::to_string(unit),
+                    "this bus serves one unit only");
 }
 
 DeviceError::DeviceError(DeviceErrorKind kind, std::string device, std::string operation,

@@ -84,6 +84,12 @@ class ModbusBus final : public RegisterBus {
 
   const std::string& name() const override { return name_; }
 
+  void select_unit(int unit) override {
+    if (unit < 1 || unit > 247 || modbus_set_slave(ctx_.get(), unit) == -1)
+      throw DeviceError(DeviceErrorKind::kProtocol, name_, "select unit " + std::to_string(unit),
+                        "unit must be 1..247");
+  }
+
  private:
   [[noreturn]] void fail(const std::string& op, int err) {
     DeviceError e = modbus_error(name_, op, err);

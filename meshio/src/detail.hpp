@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 
+#include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/mesh.hpp"
 
 namespace scanmesh::meshio::detail {
@@ -89,7 +90,8 @@ class Tokenizer {
 bool iequals(std::string_view a, std::string_view b);
 
 /// Full PLY parser; with `vertices_only` it stops after the vertex element.
-recon::Mesh parse_ply(std::string_view bytes, std::string_view name, bool vertices_only);
+recon::Mesh parse_ply(std::string_view bytes, std::string_view name, bool vertices_only,
+                      PlyExtras* extras = nullptr);
 
 /// Full OBJ parser; with `vertices_only` 'f' statements are not parsed.
 recon::Mesh parse_obj(std::string_view text, std::string_view name, bool vertices_only);

@@ -88,10 +88,16 @@ struct Header {
   std::vector<Element> elements;
   std::size_t body_offset = 0;  ///< first byte after "end_header\n"
   std::size_t body_line = 0;    ///< line number of the first body line (ascii)
+  std::int64_t num_cols = -1;   ///< `obj_info num_cols N` (range scans), -1 when absent
+  /// Header lines skipped because their keyword is unknown, each named with its line.
+  std::vector<std::string> warnings;
 };
 
 /// What the parser does with an element.
-enum class Role { kVertex, kFace, kStrips, kSkip };
+enum class Role { kVertex, kFace, kStrips, kRange, kSkip };
+
+/// An empty range_grid entry (no sample at that grid position).
+constexpr std::uint32_t kNoRangeVertex = 0xffffffffu;
 
 struct ElementPlan {
   Role role = Role::kSkip;
@@ -112,7 +118,13 @@ Header parse_header(std::string_view bytes, std::string_view name) {
     const std::size_t ln = lines.line_number();
     detail::Tokenizer tok(line);
     const std::string_view key = tok.next();
-    if (key.empty() || key == "comment" || key == "obj_info") continue;
+    if (key.empty() || key == "comment") continue;
+    if (key == "obj_info") {
+      std::int64_t cols = 0;
+      if (tok.next() == "num_cols" && detail::parse_int_token(tok.next(), cols) && cols > 0)
+        h.num_cols = cols;
+      continue;
+    }
     if (key == "format") {
       const std::string_view f = tok.next();
       if (f == "ascii") {
@@ -164,13 +176,28 @@ Header parse_header(std::string_view bytes, std::string_view name) {
       h.body_line = ln + 1;
       return h;
     } else {
-      fail_line(name, ln, "unknown header keyword " + detail::quote(key));
+      // Real raw scans bend the format (some of the Stanford range scans carry a line 'bye'
+      // before their elements): a line the reader does not know is skipped, with a warning,
+      // as long as the elements and properties it needs are well formed.
+      h.warnings.push_back(std::string(name) + ":" + std::to_string(ln) +
+                           ": unknown header line " + detail::quote(line) + " skipped");
     }
   }
 }
 
-ElementPlan plan_element(const Element& e, std::string_view name, bool have_vertex) {
+ElementPlan plan_element(const Element& e, std::string_view name, bool have_vertex,
+                         bool want_range = false) {
   ElementPlan plan;
+  if (want_range && e.name == "range_grid") {
+    plan.indices = e.find("vertex_indices");
+    if (plan.indices >= 0) {
+      const Property& p = e.properties[static_cast<std::size_t>(plan.indices)];
+      if (!p.is_list || !is_integer(p.type))
+        fail_line(name, e.header_line, "range_grid's vertex_indices must be a list of an integer type");
+      plan.role = Role::kRange;
+    }
+    return plan;
+  }
   if (e.name == "vertex" && !have_vertex) {
     plan.role = Role::kVertex;
     plan.x = e.find("x");
@@ -357,6 +384,7 @@ class BinaryReader {
 };
 
 void read_binary_body(std::string_view bytes, std::string_view name, const Header& h,
+                      std::vector<std::uint32_t>* range,
                       bool vertices_only, recon::Mesh& mesh) {
   BinaryReader in(bytes, h.body_offset, h.format == Format::kBinaryBig, name);
   const Element* vertex_element = nullptr;
@@ -373,7 +401,7 @@ void read_binary_body(std::string_view bytes, std::string_view name, const Heade
   bool have_vertex = false;
 
   for (const Element& e : h.elements) {
-    const ElementPlan plan = plan_element(e, name, have_vertex);
+    const ElementPlan plan = plan_element(e, name, have_vertex, range != nullptr);
     const std::size_t min_size = e.min_binary_size();
     if (min_size == 0 || e.count == 0) continue;  // an element without properties has no bytes
     if (e.count > in.remaining() / min_size) {
@@ -408,6 +436,29 @@ void read_binary_body(std::string_view bytes, std::string_view name, const Heade
         mesh.vertices.emplace_back(xyz[0], xyz[1], xyz[2]);
       }
       if (vertices_only) return;
+      continue;
+    }
+
+    if (plan.role == Role::kRange) {
+      range->reserve(count);
+      for (std::size_t k = 0; k < count; ++k) {
+        std::uint32_t entry = kNoRangeVertex;
+        for (std::size_t pi = 0; pi < e.properties.size(); ++pi) {
+          const Property& p = e.properties[pi];
+          if (static_cast<int>(pi) != plan.indices) {
+            in.skip_property(p, what);
+            continue;
+          }
+          const std::size_t n = in.read_list_count(p, what);
+          for (std::size_t j = 0; j < n; ++j) {
+            const std::size_t at = in.pos();
+            const std::int64_t v = in.read_int(p.type);
+            if (auto bad = sink.check(v)) fail_byte(name, at, "range_grid " + std::to_string(k) + ": " + *bad);
+            if (j == 0) entry = static_cast<std::uint32_t>(v);
+          }
+        }
+        range->push_back(entry);
+      }
       continue;
     }
 
@@ -556,6 +607,7 @@ class AsciiReader {
 };
 
 void read_ascii_body(std::string_view bytes, std::string_view name, const Header& h,
+                     std::vector<std::uint32_t>* range,
                      bool vertices_only, recon::Mesh& mesh) {
   AsciiReader in(bytes, h.body_offset, h.body_line, name);
   const Element* vertex_element = nullptr;
@@ -571,7 +623,7 @@ void read_ascii_body(std::string_view bytes, std::string_view name, const Header
   bool have_vertex = false;
 
   for (const Element& e : h.elements) {
-    const ElementPlan plan = plan_element(e, name, have_vertex);
+    const ElementPlan plan = plan_element(e, name, have_vertex, range != nullptr);
     if (e.properties.empty() || e.count == 0) continue;
     // Every entry is at least one value and a line break: two bytes.
     if (e.count > in.remaining() / 2 + 1) {
@@ -586,6 +638,8 @@ void read_ascii_body(std::string_view bytes, std::string_view name, const Header
       mesh.vertices.reserve(count);
     } else if (plan.role == Role::kFace) {
       mesh.triangles.reserve(mesh.triangles.size() + count);
+    } else if (plan.role == Role::kRange) {
+      range->reserve(count);
     }
     for (std::size_t k = 0; k < count; ++k) {
       if (!in.begin_entry()) {
@@ -605,6 +659,21 @@ void read_ascii_body(std::string_view bytes, std::string_view name, const Header
           }
         }
         mesh.vertices.emplace_back(xyz[0], xyz[1], xyz[2]);
+      } else if (plan.role == Role::kRange) {
+        std::uint32_t entry = kNoRangeVertex;
+        for (std::size_t pi = 0; pi < e.properties.size(); ++pi) {
+          if (static_cast<int>(pi) != plan.indices) {
+            in.skip_property(e.properties[pi], what);
+            continue;
+          }
+          const std::size_t n = in.list_count(what);
+          for (std::size_t j = 0; j < n; ++j) {
+            const std::int64_t v = in.integer(what);
+            if (auto bad = sink.check(v)) fail_line(name, in.line(), *bad);
+            if (j == 0) entry = static_cast<std::uint32_t>(v);
+          }
+        }
+        range->push_back(entry);
       } else if (plan.role == Role::kFace || plan.role == Role::kStrips) {
         for (std::size_t pi = 0; pi < e.properties.size(); ++pi) {
           if (static_cast<int>(pi) != plan.indices) {
@@ -648,8 +717,11 @@ void read_ascii_body(std::string_view bytes, std::string_view name, const Header
 
 namespace detail {
 
-recon::Mesh parse_ply(std::string_view bytes, std::string_view name, bool vertices_only) {
+recon::Mesh parse_ply(std::string_view bytes, std::string_view name, bool vertices_only,
+                      PlyExtras* extras) {
   const Header h = parse_header(bytes, name);
+  std::vector<std::uint32_t> range;
+  std::vector<std::uint32_t>* range_sink = extras != nullptr ? &range : nullptr;
   recon::Mesh mesh;
   for (const Element& e : h.elements) {
     if (e.name == "vertex" && e.count > std::numeric_limits<std::uint32_t>::max()) {
@@ -657,9 +729,28 @@ recon::Mesh parse_ply(std::string_view bytes, std::string_view name, bool vertic
     }
   }
   if (h.format == Format::kAscii) {
-    read_ascii_body(bytes, name, h, vertices_only, mesh);
+    read_ascii_body(bytes, name, h, range_sink, vertices_only, mesh);
   } else {
-    read_binary_body(bytes, name, h, vertices_only, mesh);
+    read_binary_body(bytes, name, h, range_sink, vertices_only, mesh);
+  }
+  if (extras != nullptr) {
+    extras->warnings = h.warnings;
+    extras->range_rows.clear();
+    if (!range.empty()) {
+      if (h.num_cols <= 0)
+        fail_line(name, 1, "range_grid without 'obj_info num_cols N': its rows are unknown");
+      const auto cols = static_cast<std::size_t>(h.num_cols);
+      if (range.size() % cols != 0)
+        fail_line(name, 1, "range_grid has " + std::to_string(range.size()) +
+                               " entries, not a whole number of rows of num_cols " +
+                               std::to_string(cols));
+      for (std::size_t r = 0; r < range.size(); r += cols) {
+        std::vector<std::uint32_t> row;
+        for (std::size_t c = r; c < r + cols; ++c)
+          if (range[c] != kNoRangeVertex) row.push_back(range[c]);
+        extras->range_rows.push_back(std::move(row));
+      }
+    }
   }
   return mesh;
 }
@@ -668,6 +759,15 @@ recon::Mesh parse_ply(std::string_view bytes, std::string_view name, bool vertic
 
 recon::Mesh parse_ply(std::string_view bytes, std::string_view name) {
   return detail::parse_ply(bytes, name, false);
+}
+
+recon::Mesh parse_ply(std::string_view bytes, std::string_view name, PlyExtras& extras) {
+  return detail::parse_ply(bytes, name, false, &extras);
+}
+
+recon::Mesh read_ply(const std::filesystem::path& file, PlyExtras& extras) {
+  detail::require_readable(file);
+  return parse_ply(detail::load_file(file), file.string(), extras);
 }
 
 }  // namespace scanmesh::meshio

@@ -2384,6 +2384,17 @@ void Builder::grow_from_bulk() {
       excluded[v] = (!turning_.empty() && turning_[v] != 0) ? 1 : 0;
     for (const Triangle& t : ctx_->triangles)
       for (std::uint32_t v : t) excluded[v] = 1;
+    // Nor the points near them: the bulk's triangles are not tested against the context's,
+    // so the patches keep a grid ring away and the front (with its crossing guard) joins them.
+    for (std::uint32_t v = 0; v < p_.size(); ++v) {
+      if (excluded[v] || state_[v] != VertexState::kFree) continue;
+      bool near = false;
+      grid_.for_each_near(p_[v], 1, [&](std::uint32_t q) {
+        near = near || (ctx_->active[q] == 0);
+      });
+      if (near) excluded[v] = 2;
+    }
+    for (std::uint8_t& e : excluded) e = e != 0 ? 1 : 0;
     detail::bulk_triangles(p_, f_, grid_, excluded, bo, bulk, stats);
   } else {
     detail::bulk_triangles(p_, f_, grid_, turning_, bo, bulk, stats);

@@ -24,10 +24,12 @@ std::vector<std::string> IncrementalOptions::validate() const {
   std::vector<std::string> errors = reconstruct.validate();
   if (reconstruct.fill.max_edges > 0)
     errors.push_back("the incremental path does not fill holes on request (fill.max_edges must be 0)");
+  if (reconstruct.cube_mode == ReconstructOptions::CubeMode::kNone)
+    errors.push_back("the incremental path needs cubes (cube mode none is for the batch path only)");
   if (reconstruct.denoise) errors.push_back("the incremental path does not denoise (denoise must be off)");
   if (reconstruct.sharpen) errors.push_back("the incremental path does not sharpen (sharpen must be off)");
-  if (spacing_points < 1000 || spacing_points > 10000000)
-    errors.push_back("spacing_points must be in [1000, 10000000], got " + std::to_string(spacing_points));
+  if (spacing_points < 100 || spacing_points > 10000000)
+    errors.push_back("spacing_points must be in [100, 10000000], got " + std::to_string(spacing_points));
   if (block_cubes < 8 || block_cubes > 64)
     errors.push_back("block_cubes must be in [8, 64], got " + std::to_string(block_cubes));
   if (settle_interval_points < 1 || settle_interval_points > 1000000)
@@ -250,7 +252,8 @@ void IncrementalReconstructor::settle(const Eigen::AlignedBox3d& box) {
 
 MeshDelta IncrementalReconstructor::take_delta() {
   const double t0 = s_->now();
-  MeshDelta d = s_->mesh.take_delta();
+  MeshDelta d = s_->mesh.take_delta(
+      [&](std::span<const std::uint32_t> touched) { return s_->jobs.loops_through(touched); });
   if (!d.empty()) ++s_->deltas;
   s_->times.add("delta", s_->now() - t0);
   return d;

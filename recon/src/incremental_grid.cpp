@@ -70,6 +70,7 @@ InsertOutcome CubeGrid::insert(const Vec3& p, const Vec3* towards, std::size_t i
       nb.z = static_cast<std::int32_t>(bz);
       blocks_.push_back(std::move(nb));
       block_table_.insert(key(bx, by, bz), b);
+      unmeshed_.push_back(b);
     }
     c = static_cast<std::uint32_t>(cubes_.size());
     Cube nc;
@@ -85,7 +86,10 @@ InsertOutcome CubeGrid::insert(const Vec3& p, const Vec3* towards, std::size_t i
     Block& blk = blocks_[b];
     blk.cubes.push_back(c);
     out = InsertOutcome::kNewCube;
-    if (blk.state == BlockState::kMeshed) out = InsertOutcome::kReopened;
+    if (blk.state == BlockState::kMeshed) {
+      out = InsertOutcome::kReopened;
+      unmeshed_.push_back(b);
+    }
     blk.state = BlockState::kOpen;
     blk.forced = false;
   } else {
@@ -137,14 +141,19 @@ bool CubeGrid::settled_now(const Block& b, std::size_t seq,
 std::vector<std::uint32_t> CubeGrid::settle(std::size_t seq,
                                             const std::optional<Footprint>& footprint,
                                             std::size_t delay, double margin_cubes, double now) {
-  for (Block& b : blocks_) {
+  // Only the unmeshed blocks (the scan's frontier) are looked at: the list drops the meshed.
+  std::erase_if(unmeshed_, [&](std::uint32_t i) { return blocks_[i].state == BlockState::kMeshed; });
+  std::sort(unmeshed_.begin(), unmeshed_.end());  // a block re-opened twice is listed once
+  unmeshed_.erase(std::unique(unmeshed_.begin(), unmeshed_.end()), unmeshed_.end());
+  for (std::uint32_t i : unmeshed_) {
+    Block& b = blocks_[i];
     if (b.state == BlockState::kOpen && settled_now(b, seq, footprint, delay, margin_cubes)) {
       b.state = BlockState::kSettled;
       b.settled_at = now;
     }
   }
   std::vector<std::uint32_t> ready;
-  for (std::uint32_t i = 0; i < blocks_.size(); ++i) {
+  for (std::uint32_t i : unmeshed_) {
     const Block& b = blocks_[i];
     if (b.state != BlockState::kSettled) continue;
     bool all = true;
@@ -156,12 +165,14 @@ std::vector<std::uint32_t> CubeGrid::settle(std::size_t seq,
         }
     if (all) ready.push_back(i);
   }
+  std::sort(ready.begin(), ready.end());
   return ready;
 }
 
 void CubeGrid::force_settle(const Eigen::AlignedBox3d* box, double now) {
   const double edge = cube_ * block_cubes_;
-  for (Block& b : blocks_) {
+  for (const std::uint32_t i : unmeshed_) {
+    Block& b = blocks_[i];
     if (b.state == BlockState::kMeshed) continue;
     if (box != nullptr) {
       const Vec3 lo = origin_ + edge * Vec3(b.x, b.y, b.z);
@@ -179,8 +190,10 @@ void CubeGrid::mark_meshed(std::uint32_t block) { blocks_[block].state = BlockSt
 
 std::vector<std::uint32_t> CubeGrid::unmeshed_blocks() const {
   std::vector<std::uint32_t> out;
-  for (std::uint32_t i = 0; i < blocks_.size(); ++i)
+  for (std::uint32_t i : unmeshed_)
     if (blocks_[i].state != BlockState::kMeshed) out.push_back(i);
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
 }
 
@@ -193,9 +206,12 @@ std::vector<std::uint32_t> CubeGrid::thinned_cubes_of(std::span<const std::uint3
     if (ca.d2 != cb.d2) return ca.d2 < cb.d2;
     return a < b;
   });
-  std::vector<std::uint8_t> in_job(blocks_.size(), 0);
+  // Scratch flags (sized to the grid, cleared after use): O(job), not O(grid), a call.
+  std::vector<std::uint8_t>& in_job = block_mark_;
+  std::vector<std::uint8_t>& kept = cube_mark_;
+  in_job.resize(blocks_.size(), 0);
+  kept.resize(cubes_.size(), 0);
   for (std::uint32_t b : job) in_job[b] = 1;
-  std::vector<std::uint8_t> kept(cubes_.size(), 0);
   const double r2 = 0.65 * 0.65 * cube_ * cube_;
   std::vector<std::uint32_t> out;
   out.reserve(cand.size());
@@ -215,6 +231,8 @@ std::vector<std::uint32_t> CubeGrid::thinned_cubes_of(std::span<const std::uint3
     kept[c] = 1;
     out.push_back(c);
   }
+  for (std::uint32_t c : out) kept[c] = 0;
+  for (std::uint32_t b : job) in_job[b] = 0;
   return out;
 }
 
@@ -305,51 +323,6 @@ std::size_t CubeGrid::heap_bytes() const {
                   cube_table_.heap_bytes() + block_table_.heap_bytes();
   for (const Block& b : blocks_) n += b.cubes.capacity() * 4;
   return n;
-}
-
-std::vector<std::vector<std::uint32_t>> boundary_loops_through(
-    std::span<const Triangle> triangles, std::span<const std::uint32_t> touched) {
-  // Half-edges (from << 32 | to), sorted: a boundary half-edge has no twin.
-  std::vector<std::uint64_t> half;
-  half.reserve(triangles.size() * 3);
-  for (const Triangle& t : triangles)
-    for (int k = 0; k < 3; ++k)
-      half.push_back((std::uint64_t{t[k]} << 32) | t[(k + 1) % 3]);
-  std::sort(half.begin(), half.end());
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> next;  // boundary (from, to), sorted
-  for (const std::uint64_t h : half) {
-    const auto u = static_cast<std::uint32_t>(h >> 32), v = static_cast<std::uint32_t>(h);
-    if (!std::binary_search(half.begin(), half.end(), (std::uint64_t{v} << 32) | u))
-      next.emplace_back(u, v);
-  }
-  std::vector<std::uint8_t> walked(next.size(), 0);
-  auto first_out = [&](std::uint32_t u) {
-    const auto it = std::lower_bound(next.begin(), next.end(), std::make_pair(u, std::uint32_t{0}));
-    return it != next.end() && it->first == u ? static_cast<std::size_t>(it - next.begin())
-                                              : next.size();
-  };
-  std::vector<std::vector<std::uint32_t>> loops;
-  for (const std::uint32_t t : touched) {
-    for (std::size_t e = first_out(t); e < next.size() && next[e].first == t; ++e) {
-      if (walked[e]) continue;
-      std::vector<std::uint32_t> loop;
-      std::size_t f = e;
-      while (f < next.size() && !walked[f]) {
-        walked[f] = 1;
-        loop.push_back(next[f].first);
-        f = first_out(next[f].second);
-        // Where loops touch at a vertex, take an out-edge not walked yet.
-        while (f < next.size() && walked[f] && f + 1 < next.size() &&
-               next[f + 1].first == next[f].first)
-          ++f;
-      }
-      // Start at the smallest id (a canonical form).
-      std::rotate(loop.begin(), std::min_element(loop.begin(), loop.end()), loop.end());
-      loops.push_back(std::move(loop));
-    }
-  }
-  std::sort(loops.begin(), loops.end());
-  return loops;
 }
 
 }  // namespace scanmesh::recon::detail

@@ -41,6 +41,18 @@ class KeyTable {
       if (keys_[h] == kEmpty) return kNoId;
     }
   }
+  /// Inserts, or overwrites the value of a key present.
+  void assign(std::uint64_t key, std::uint32_t value) {
+    if (!keys_.empty())
+      for (std::size_t h = slot(key);; h = (h + 1) & mask_) {
+        if (keys_[h] == key) {
+          values_[h] = value;
+          return;
+        }
+        if (keys_[h] == kEmpty) break;
+      }
+    insert(key, value);
+  }
   void insert(std::uint64_t key, std::uint32_t value) {
     if ((size_ + 1) * 2 > keys_.size()) grow();
     std::size_t h = slot(key);
@@ -156,6 +168,8 @@ class CubeGrid {
   KeyTable cube_table_;
   std::vector<Block> blocks_;
   KeyTable block_table_;
+  std::vector<std::uint32_t> unmeshed_;  // blocks not meshed (meshed ones dropped lazily)
+  mutable std::vector<std::uint8_t> cube_mark_, block_mark_;  // scratch, all zero between calls
 };
 
 }  // namespace scanmesh::recon::detail

@@ -58,22 +58,123 @@ const std::vector<std::uint32_t>& JobMesher::live_triangles(std::uint32_t b) {
   return l;
 }
 
+void JobMesher::update_boundary(std::vector<std::uint32_t> vertices) {
+  // By block: each block's triangle list is read once.
+  std::sort(vertices.begin(), vertices.end(), [&](std::uint32_t a, std::uint32_t b) {
+    const std::uint32_t ba = grid_.block_of(vertex_cube_[a]), bb = grid_.block_of(vertex_cube_[b]);
+    return ba != bb ? ba < bb : a < b;
+  });
+  vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> half;
+  for (std::size_t i = 0; i < vertices.size();) {
+    const std::uint32_t b = grid_.block_of(vertex_cube_[vertices[i]]);
+    std::size_t j = i;
+    while (j < vertices.size() && grid_.block_of(vertex_cube_[vertices[j]]) == b) ++j;
+    half.clear();
+    for (std::uint32_t id : live_triangles(b)) {
+      const Triangle& t = mesh_.triangle(id);
+      for (int k = 0; k < 3; ++k) half.emplace_back(t[k], t[(k + 1) % 3]);
+    }
+    std::sort(half.begin(), half.end());
+    for (std::size_t k = i; k < j; ++k) {
+      const std::uint32_t v = vertices[k];
+      std::uint32_t next = kNoId;
+      auto it = std::lower_bound(half.begin(), half.end(), std::make_pair(v, std::uint32_t{0}));
+      for (; it != half.end() && it->first == v && next == kNoId; ++it)
+        if (!std::binary_search(half.begin(), half.end(), std::make_pair(it->second, v))) next = it->second;
+      if (next != kNoId || boundary_next_.find(v) != kNoId) boundary_next_.assign(v, next);
+    }
+    i = j;
+  }
+}
+
+std::vector<std::vector<std::uint32_t>> JobMesher::loops_through(
+    std::span<const std::uint32_t> touched) const {
+  std::vector<std::vector<std::uint32_t>> loops;
+  std::vector<std::uint32_t> seen;  // loop starts (smallest ids) already given
+  for (const std::uint32_t t : touched) {
+    if (boundary_next_.find(t) == kNoId) continue;
+    std::vector<std::uint32_t> loop{t};
+    std::uint32_t v = boundary_next_.find(t);
+    while (v != kNoId && v != t && loop.size() <= mesh_.vertex_count()) {
+      loop.push_back(v);
+      v = boundary_next_.find(v);
+    }
+    if (v != t) continue;  // not closed (cannot happen on a manifold mesh)
+    std::rotate(loop.begin(), std::min_element(loop.begin(), loop.end()), loop.end());
+    if (std::find(seen.begin(), seen.end(), loop.front()) != seen.end()) continue;
+    seen.push_back(loop.front());
+    loops.push_back(std::move(loop));
+  }
+  std::sort(loops.begin(), loops.end());
+  return loops;
+}
+
 bool JobMesher::used(std::uint32_t vertex) const {
   return vertex < vertex_uses_.size() && vertex_uses_[vertex] > 0;
+}
+
+int JobMesher::sectors(std::span<const std::uint32_t> fan, std::uint32_t v) const {
+  // Boundary out-edges at v among the fan's triangles: 0 for a closed fan, 1 for an open one.
+  int outs = 0;
+  for (std::uint32_t id : fan) {
+    const Triangle& t = mesh_.triangle(id);
+    const int k = t[0] == v ? 0 : (t[1] == v ? 1 : 2);
+    const std::uint32_t w = t[(k + 1) % 3];
+    bool twin = false;  // (w, v) in another triangle of the fan
+    for (std::uint32_t o : fan) {
+      const Triangle& u = mesh_.triangle(o);
+      for (int j = 0; j < 3 && !twin; ++j) twin = u[j] == w && u[(j + 1) % 3] == v;
+    }
+    if (!twin) ++outs;
+  }
+  return outs;
 }
 
 void JobMesher::run(std::span<const std::uint32_t> job) {
   ++stats_.jobs;
   if (block_tris_.size() < grid_.block_count()) block_tris_.resize(grid_.block_count());
+  std::vector<std::uint32_t> changed;  // vertices whose fans changed: boundary successors
   auto remove = [&](std::uint32_t id) {
     if (!mesh_.alive(id)) return;
-    for (std::uint32_t v : mesh_.triangle(id)) --vertex_uses_[v];
+    for (std::uint32_t v : mesh_.triangle(id)) {
+      --vertex_uses_[v];
+      changed.push_back(v);
+    }
     mesh_.remove_triangle(id);
     ++stats_.removed;
   };
-  // A re-opened block: every triangle with a vertex in it goes (meshed again below).
+  // A re-opened block: every triangle with a vertex in it goes (meshed again below). A vertex
+  // around it whose fan that splits in two (the block's triangles met it on two sides) is freed
+  // too, all its triangles removed, and meshed with the job: the front needs one fan a vertex.
+  std::vector<std::uint32_t> freed, touched;
   for (std::uint32_t b : job)
-    for (std::uint32_t id : std::vector<std::uint32_t>(live_triangles(b))) remove(id);
+    for (std::uint32_t id : std::vector<std::uint32_t>(live_triangles(b))) {
+      for (std::uint32_t v : mesh_.triangle(id)) touched.push_back(v);
+      remove(id);
+    }
+  while (!touched.empty()) {
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    std::vector<std::uint32_t> next;
+    for (std::uint32_t v : touched) {
+      if (vertex_uses_[v] == 0) continue;
+      std::vector<std::uint32_t> fan;
+      for (std::uint32_t id : live_triangles(grid_.block_of(vertex_cube_[v]))) {
+        const Triangle& t = mesh_.triangle(id);
+        if (t[0] == v || t[1] == v || t[2] == v) fan.push_back(id);
+      }
+      if (sectors(fan, v) <= 1) continue;
+      freed.push_back(v);
+      for (std::uint32_t id : fan) {
+        for (std::uint32_t w : mesh_.triangle(id)) next.push_back(w);
+        remove(id);
+      }
+    }
+    touched.swap(next);
+  }
+  std::sort(freed.begin(), freed.end());
+  freed.erase(std::unique(freed.begin(), freed.end()), freed.end());
 
   // The zone: the job and its neighbours. Context: every live triangle with a vertex there, and
   // the whole fan of any vertex outside the zone whose triangles in the context form more than
@@ -95,9 +196,30 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
   }
   std::sort(context.begin(), context.end());
   context.erase(std::unique(context.begin(), context.end()), context.end());
-  for (int round = 0; round < 8; ++round) {
-    // Directed edges of the context; a vertex outside the zone with two boundary out-edges has
-    // two sectors.
+  // Every vertex of those triangles gets its whole fan (the repairs may remove triangles around
+  // any of them, and must see the whole fan to keep it one); then the vertices at the rim whose
+  // triangles in the context form two sectors get theirs too.
+  auto add_fans = [&](const std::vector<std::uint32_t>& vertices) {
+    for (std::uint32_t v : vertices)
+      for (std::uint32_t id : live_triangles(grid_.block_of(vertex_cube_[v]))) {
+        const Triangle& t = mesh_.triangle(id);
+        if (t[0] == v || t[1] == v || t[2] == v) context.push_back(id);
+      }
+    std::sort(context.begin(), context.end());
+    context.erase(std::unique(context.begin(), context.end()), context.end());
+  };
+  {
+    std::vector<std::uint32_t> outside;
+    for (std::uint32_t id : context)
+      for (std::uint32_t v : mesh_.triangle(id))
+        if (!in_zone[grid_.block_of(vertex_cube_[v])]) outside.push_back(v);
+    std::sort(outside.begin(), outside.end());
+    outside.erase(std::unique(outside.begin(), outside.end()), outside.end());
+    add_fans(outside);
+  }
+  std::vector<std::uint8_t> full;  // per vertex id: its whole fan is in the context
+  for (int round = 0; round < 16; ++round) {
+    // Directed edges of the context; a vertex with two boundary out-edges has two sectors.
     std::vector<std::pair<std::uint32_t, std::uint32_t>> half;
     half.reserve(context.size() * 3);
     for (std::uint32_t id : context) {
@@ -113,19 +235,12 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
         last = u;
         outs = 0;
       }
-      if (in_zone[grid_.block_of(vertex_cube_[u])]) continue;
       if (std::binary_search(half.begin(), half.end(), std::make_pair(v, u))) continue;
       if (++outs == 2) split.push_back(u);
     }
     if (split.empty()) break;
     const std::size_t before = context.size();
-    for (std::uint32_t v : split)
-      for (std::uint32_t id : live_triangles(grid_.block_of(vertex_cube_[v]))) {
-        const Triangle& t = mesh_.triangle(id);
-        if (t[0] == v || t[1] == v || t[2] == v) context.push_back(id);
-      }
-    std::sort(context.begin(), context.end());
-    context.erase(std::unique(context.begin(), context.end()), context.end());
+    add_fans(split);
     if (context.size() == before) break;
   }
   stats_.context_triangles += context.size();
@@ -138,9 +253,14 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
     for (std::uint32_t v : mesh_.triangle(id)) ctx_vertices.push_back(v);
   std::sort(ctx_vertices.begin(), ctx_vertices.end());
   ctx_vertices.erase(std::unique(ctx_vertices.begin(), ctx_vertices.end()), ctx_vertices.end());
-  const std::vector<std::uint32_t> job_cubes = grid_.thinned_cubes_of(job);
+  std::vector<std::uint32_t> job_cubes = grid_.thinned_cubes_of(job);
+  for (std::uint32_t v : freed)
+    if (vertex_uses_[v] == 0) job_cubes.push_back(vertex_cube_[v]);
   const std::size_t nc = ctx_vertices.size(), n = nc + job_cubes.size();
-  if (job_cubes.empty()) return;
+  if (job_cubes.empty()) {
+    update_boundary(std::move(changed));
+    return;
+  }
   std::vector<Vec3> pts;
   pts.reserve(n);
   for (std::uint32_t v : ctx_vertices) pts.push_back(mesh_.vertex(v));
@@ -154,7 +274,10 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
     if (!in_job[b]) ring.push_back(b);
   for (std::uint32_t c : grid_.cubes_near(job, ring, 4))
     if (grid_.vertex_of(c) == kNoId) pts.push_back(position(c));
-  if (pts.size() < 3) return;
+  if (pts.size() < 3) {
+    update_boundary(std::move(changed));
+    return;
+  }
 
   // Frames over all of them; the context's vertices keep the normals and spacings they were
   // meshed with, and orient the rest (as sensor directions: each part the propagation orients
@@ -178,6 +301,7 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
     try {
       frames = estimate_frames(pts, g, opt_.normals, towards);
     } catch (const GeometryError&) {
+      update_boundary(std::move(changed));
       return;  // not a surface yet
     }
   }
@@ -243,9 +367,11 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
         if (id_of[l] == kNoId) id_of[l] = publish_vertex(c, pts[l], frames.normal[l], fr.spacing[l]);
       }
       g[k] = id_of[l];
+      changed.push_back(g[k]);
     }
     publish_triangle(g);
   }
+  update_boundary(std::move(changed));
 }
 
 void JobMesher::close() {
@@ -264,10 +390,13 @@ void JobMesher::close() {
     gap_fill.refine = false;
     const FillStats fs = fill_holes(m, gap_fill, spacing);
     stats_.gaps_closed += fs.filled;
+    std::vector<std::uint32_t> changed;
     for (std::size_t i = before; i < m.triangles.size(); ++i) {
       const Triangle& t = m.triangles[i];
       publish_triangle({ids[t[0]], ids[t[1]], ids[t[2]]});
+      for (std::uint32_t v : t) changed.push_back(ids[v]);
     }
+    update_boundary(std::move(changed));
   }
   // Closed components face outward (each job orients what it starts; a closed surface is only
   // known as such at the end).
@@ -302,6 +431,7 @@ void JobMesher::close() {
     const Vec3 c = centroid[k] / count[k];
     vol[k] += (snap.vertex(t[0]) - c).dot((snap.vertex(t[1]) - c).cross(snap.vertex(t[2]) - c));
   }
+  // (A closed component has no boundary: no successor changes.)
   for (std::size_t i = 0; i < tris.size(); ++i) {
     const std::uint32_t c = comps.of(tris[i]);
     if (open[c] || vol[c] >= 0) continue;

@@ -35,6 +35,10 @@ class JobMesher {
   /// finish(): closes the sampling gaps left between jobs (the batch path's gap closing) and
   /// turns closed components outward.
   void close();
+  /// The boundary loops through `touched` vertices (ascending), each once as a vertex cycle in
+  /// the direction its triangles run, starting at its smallest id; loops ascending.
+  [[nodiscard]] std::vector<std::vector<std::uint32_t>> loops_through(
+      std::span<const std::uint32_t> touched) const;
   /// Whether the kept point of cube c is a vertex of a live triangle.
   [[nodiscard]] bool used(std::uint32_t vertex) const;
   [[nodiscard]] const JobStats& stats() const { return stats_; }
@@ -44,8 +48,14 @@ class JobMesher {
   std::uint32_t publish_vertex(std::uint32_t cube, const Vec3& p, const Eigen::Vector3f& normal,
                                float spacing);
   std::uint32_t publish_triangle(const Triangle& t);
+  /// The sectors (open fans) of v's triangles `fan` (every live triangle with v): more than one
+  /// where they do not make one fan.
+  [[nodiscard]] int sectors(std::span<const std::uint32_t> fan, std::uint32_t v) const;
   /// The live triangles listed under block b (the list is compacted on the way).
   const std::vector<std::uint32_t>& live_triangles(std::uint32_t b);
+  /// Recomputes the boundary successor of `vertices` (any order, repeats allowed) from their
+  /// fans.
+  void update_boundary(std::vector<std::uint32_t> vertices);
 
   const ReconstructOptions& opt_;
   CubeGrid& grid_;
@@ -57,6 +67,8 @@ class JobMesher {
   std::vector<std::uint32_t> vertex_uses_;  // live triangles using it
   // Per block: the published triangles with a vertex in it (dead ones dropped lazily).
   std::vector<std::vector<std::uint32_t>> block_tris_;
+  /// Per boundary vertex: the next vertex along its loop (kNoId once it is not on one).
+  KeyTable boundary_next_;
   JobStats stats_;
 };
 

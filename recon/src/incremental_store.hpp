@@ -78,12 +78,6 @@ class CowChunks {
   std::size_t size_ = 0;
 };
 
-/// The walk of boundary loops through `touched` vertices over `triangles` (a manifold,
-/// consistently oriented set; removed slots skipped): each loop once, as a vertex cycle in the
-/// direction its triangles run, starting at its smallest vertex id; loops ascending by it.
-std::vector<std::vector<std::uint32_t>> boundary_loops_through(
-    std::span<const Triangle> triangles, std::span<const std::uint32_t> touched);
-
 /// The published mesh and the delta pending since the last take_delta().
 class PublishedMesh {
  public:
@@ -125,7 +119,10 @@ class PublishedMesh {
     return s;
   }
 
-  MeshDelta take_delta() {
+  /// The delta since the last call; `loops(touched)` gives the boundary loops through the
+  /// vertices of the triangles added and removed (ascending, unique).
+  template <class Loops>
+  MeshDelta take_delta(Loops&& loops) {
     MeshDelta d;
     d.first_vertex = delta_first_vertex_;
     for (std::size_t v = delta_first_vertex_; v < vertices_.size(); ++v) d.vertices.push_back(vertices_[v]);
@@ -140,13 +137,7 @@ class PublishedMesh {
     removed_.clear();
     std::sort(touched_.begin(), touched_.end());
     touched_.erase(std::unique(touched_.begin(), touched_.end()), touched_.end());
-    if (!touched_.empty()) {
-      std::vector<Triangle> live;
-      live.reserve(live_);
-      for (std::uint32_t id = 0; id < triangles_.size(); ++id)
-        if (alive(id)) live.push_back(triangles_[id]);
-      d.boundary_loops = boundary_loops_through(live, touched_);
-    }
+    if (!touched_.empty()) d.boundary_loops = loops(std::span<const std::uint32_t>(touched_));
     touched_.clear();
     delta_first_vertex_ = static_cast<std::uint32_t>(vertices_.size());
     delta_first_triangle_ = static_cast<std::uint32_t>(triangles_.size());

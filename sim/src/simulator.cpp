@@ -450,7 +450,10 @@ SimStats Simulator::run(SampleSink& out, TruthSink* truth_sink) const {
     if (stage_due && tp <= tt && tp <= ts) {
       // On a synchronous clock the pose was computed with the sensor tick.
       const StagePose p = tp == ts ? cur->ticks[tick_pos].pose : pose_at(tp);
-      StageSample s{stage_seq++, tp + imp.stage_latency, p};
+      StageSample s;
+      s.seq = stage_seq++;
+      s.t = tp + imp.stage_latency;
+      s.pose = p;
       if (imp.stage_noise_mm > 0) {
         s.pose.x_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
         s.pose.y_mm += imp.stage_noise_mm * stage_lin_rng.gaussian();
@@ -465,7 +468,10 @@ SimStats Simulator::run(SampleSink& out, TruthSink* truth_sink) const {
     if (trigger_due && tt <= ts) {
       const Contact& tr = probe_triggers_[next_trigger++];
       const StagePose p = pose_at(tr.t);
-      ProbeTrigger g{probe_seq++, tr.t + imp.stage_latency, p};
+      ProbeTrigger g;
+      g.seq = probe_seq++;
+      g.t = tr.t + imp.stage_latency;
+      g.pose = p;
       if (imp.stage_noise_mm > 0) {
         g.pose.x_mm += imp.stage_noise_mm * probe_rng.gaussian();
         g.pose.y_mm += imp.stage_noise_mm * probe_rng.gaussian();

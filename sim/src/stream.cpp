@@ -485,9 +485,17 @@ RecordedStream parse_stream(std::string_view text, std::string_view name,
       const double x = p.finite(tok[3], "x"), y = p.finite(tok[4], "y"), z = p.finite(tok[5], "z"),
                    a = p.finite(tok[6], "a");
       if (tag == "P") {
-        out.stage.push_back(StageSample{seq, t, {x, y, z, a}});
+        StageSample s;
+        s.seq = seq;
+        s.t = t;
+        s.pose = {x, y, z, a};
+        out.stage.push_back(s);
       } else {
-        out.probe.push_back(ProbeTrigger{seq, t, {x, y, z, a}});
+        ProbeTrigger g;
+        g.seq = seq;
+        g.t = t;
+        g.pose = {x, y, z, a};
+        out.probe.push_back(g);
       }
     } else {
       p.fail("unknown record type '" + std::string(tag) + "'");

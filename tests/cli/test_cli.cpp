@@ -1569,3 +1569,71 @@ TEST_CASE("denoise and reconstruct --denoise flatten a noisy box's faces; only v
   CHECK_THAT(r.err, Catch::Contains("far.obj") && Catch::Contains("vertex #3"));
   CHECK(!fs::exists(dir / "bad.ply"));
 }
+
+TEST_CASE("reconstruct --stream N: the incremental path, the same mesh whatever N", "[cli]") {
+  TempDir dir;
+  const fs::path xyz = generate_sphere(dir);
+  std::string first_bytes;
+  for (const char* n : {"100000", "64", "1"}) {
+    INFO("--stream " << n);
+    const fs::path ply = dir / (std::string("stream_") + n + ".ply");
+    const RunResult r = run(dir, {"reconstruct", xyz, "-o", ply, "--json", "--stream", n});
+    INFO(describe(r));
+    REQUIRE(r.status == 0);
+    const json j = json_of(r);
+    for (const char* key : {"batches", "max_batch_seconds", "finish_seconds", "deltas",
+                            "reopened_blocks", "input_points", "vertices", "triangles"}) {
+      INFO(key);
+      CHECK(j.contains(key));
+    }
+    check_manifold_oriented(j);
+    CHECK(j["boundary_loops"] == 0);
+    CHECK(j["components"] == 1);
+    const std::size_t points = j["input_points"].get<std::size_t>();
+    const std::size_t batch = std::stoul(n);
+    CHECK(j["batches"].get<std::size_t>() == (points + batch - 1) / batch);
+    CHECK(j["deltas"].get<std::size_t>() >= 1);
+    CHECK(j["max_batch_seconds"].get<double>() >= 0);
+    CHECK(j["finish_seconds"].get<double>() >= 0);
+    const scanmesh::recon::Mesh mesh = scanmesh::meshio::read_mesh(ply);
+    CHECK(mesh.triangles.size() == j["triangles"].get<std::size_t>());
+    const std::string bytes = slurp(ply);
+    if (first_bytes.empty()) {
+      first_bytes = bytes;
+    } else {
+      CHECK(bytes == first_bytes);
+    }
+  }
+  SECTION("--progress draws a bar on stderr, stdout unchanged") {
+    const RunResult r = run(dir, {"reconstruct", xyz, "-o", dir / "p.ply", "--stream", "500",
+                                  "--progress"});
+    INFO(describe(r));
+    CHECK(r.status == 0);
+    CHECK_THAT(r.err, Catch::Contains("100 %"));
+    CHECK_THAT(r.out, Catch::Contains("deltas"));
+  }
+  SECTION("--stream 0 is a usage error") {
+    const RunResult r = run(dir, {"reconstruct", xyz, "-o", dir / "z.ply", "--stream", "0"});
+    CHECK(r.status == 2);
+  }
+}
+
+TEST_CASE("reconstruct: a PLY header line the reader does not know is skipped with a warning",
+          "[cli]") {
+  TempDir dir;
+  std::string ply = "ply\nformat ascii 1.0\nobj_info num_cols 20\nbye\nelement vertex 400\n"
+                    "property float x\nproperty float y\nproperty float z\nend_header\n";
+  for (int i = 0; i < 400; ++i)
+    ply += std::to_string(i % 20) + " " + std::to_string(i / 20) + " " +
+           std::to_string(0.1 * std::sin(i * 0.37)) + "\n";
+  spit(dir / "bye.ply", ply);
+  for (const bool stream : {false, true}) {
+    std::vector<std::string> args = {"reconstruct", (dir / "bye.ply").string(), "-o",
+                                     (dir / "bye_out.ply").string()};
+    if (stream) args.insert(args.end(), {"--stream", "20"});
+    const RunResult r = run(dir, args);
+    INFO(describe(r));
+    CHECK(r.status == 0);
+    CHECK_THAT(r.err, Catch::Contains("bye.ply:4: unknown header line 'bye' skipped"));
+  }
+}

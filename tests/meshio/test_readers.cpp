@@ -385,8 +385,6 @@ TEST_CASE("ply: malformed headers and ascii bodies", "[meshio]") {
       {"no format", "ply\nelement vertex 0\nend_header\n", "bad.ply:3: header has no 'format'"},
       {"unknown format", "ply\nformat binary_middle_endian 1.0\nend_header\n",
        "bad.ply:2: unknown PLY format 'binary_middle_endian'"},
-      {"unknown keyword", "ply\nformat ascii 1.0\nbogus\nend_header\n",
-       "bad.ply:3: unknown header keyword 'bogus'"},
       {"unknown type", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\n",
        "bad.ply:4: unknown property type 'float128'"},
       {"property first", "ply\nformat ascii 1.0\nproperty float x\n",
@@ -866,4 +864,47 @@ TEST_CASE("real: bun.conf registers the ten scans onto bun_zipper", "[meshio][sl
       CHECK(median_nearest(scan.points, zipper.points, 500) > 1e-2);
     }
   }
+}
+
+TEST_CASE("ply: an unknown header line is skipped with a warning naming it", "[meshio]") {
+  // As in some of the Stanford repository's raw range scans: 'bye' between obj_info and element.
+  const std::string text =
+      "ply\nformat ascii 1.0\nobj_info num_cols 2\nbye\nelement vertex 3\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+  CHECK(meshio::parse_ply(text, "bye.ply").vertices.size() == 3);
+  meshio::PlyExtras extras;
+  const Mesh m = meshio::parse_ply(text, "bye.ply", extras);
+  CHECK(m.vertices.size() == 3);
+  REQUIRE(extras.warnings.size() == 1);
+  CHECK(extras.warnings[0] == "bye.ply:4: unknown header line 'bye' skipped");
+  CHECK(extras.range_rows.empty());
+  // What the reader needs must still be well formed.
+  CHECK_THROWS_WITH(meshio::parse_ply("ply\nformat ascii 1.0\nbye\nelement vertex 1\nproperty "
+                                      "float128 x\nend_header\n",
+                                      "bad.ply"),
+                    Catch::Contains("bad.ply:5: unknown property type 'float128'"));
+}
+
+TEST_CASE("ply: a range grid's rows", "[meshio]") {
+  const std::string text =
+      "ply\nformat ascii 1.0\nobj_info num_cols 2\n"
+      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element range_grid 6\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n"
+      "1 0\n1 1\n0\n0\n0\n1 2\n";
+  meshio::PlyExtras extras;
+  meshio::parse_ply(text, "grid.ply", extras);
+  const std::vector<std::vector<std::uint32_t>> rows = {{0, 1}, {}, {2}};
+  CHECK(extras.range_rows == rows);
+  // Binary: the same entries as the ascii reader sees; without num_cols the rows are unknown.
+  CHECK_THROWS_WITH(meshio::parse_ply(binary_ply(false), "b.ply", extras),
+                    Catch::Contains("range_grid without 'obj_info num_cols N'"));
+  std::string with_cols = binary_ply(true);
+  with_cols.replace(with_cols.find("obj_info some scanner info"), 26, "obj_info num_cols 3       ");
+  meshio::parse_ply(with_cols, "b.ply", extras);
+  CHECK(extras.range_rows == std::vector<std::vector<std::uint32_t>>{{0, 3}});
+  // A range entry naming a vertex that does not exist.
+  std::string bad = text;
+  bad.replace(bad.rfind("1 2"), 3, "1 7");
+  CHECK_THROWS_WITH(meshio::parse_ply(bad, "grid.ply", extras), Catch::Contains("grid.ply:"));
 }

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <algorithm>
 #include <map>
 #include <random>
 #include <string>
@@ -118,6 +119,24 @@ class DeltaReplay {
     return {};
   }
   [[nodiscard]] std::size_t triangle_count() const { return triangles_.size(); }
+  /// Empty when every loop is closed and each of its edges u -> v is a boundary edge of the
+  /// mesh with its triangle on the left (u -> v in a triangle, v -> u in none).
+  [[nodiscard]] std::string loops_are_boundary(
+      const std::vector<std::vector<std::uint32_t>>& loops) const {
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> half;
+    for (const auto& [id, t] : triangles_)
+      for (int k = 0; k < 3; ++k) half.emplace_back(t[k], t[(k + 1) % 3]);
+    std::sort(half.begin(), half.end());
+    for (const auto& loop : loops) {
+      if (loop.size() < 3) return "a loop of fewer than 3 vertices";
+      for (std::size_t i = 0; i < loop.size(); ++i) {
+        const std::uint32_t u = loop[i], v = loop[(i + 1) % loop.size()];
+        if (!std::binary_search(half.begin(), half.end(), std::make_pair(u, v))) return "a loop edge in no triangle";
+        if (std::binary_search(half.begin(), half.end(), std::make_pair(v, u))) return "a loop edge inside the mesh";
+      }
+    }
+    return {};
+  }
   /// Compact, as MeshSnapshot::to_mesh: used vertices and triangles in id order.
   [[nodiscard]] recon::Mesh mesh(std::vector<std::uint32_t>* ids = nullptr) const {
     recon::Mesh m;

@@ -103,12 +103,15 @@ TEST_CASE("incremental: every snapshot is a valid mesh and the deltas rebuild th
   opt.settle_delay_points = 2048;
   recon::IncrementalReconstructor rec(opt);
   test::DeltaReplay replay;
-  std::size_t non_empty = 0;
+  std::size_t non_empty = 0, loops_named = 0;
   for (std::size_t i = 0; i < pts.size(); i += 150) {  // one scan line a batch
     rec.add(std::span<const Vec3>(pts.data() + i, std::min<std::size_t>(150, pts.size() - i)));
     const recon::MeshDelta d = rec.take_delta();
     if (!d.empty()) ++non_empty;
     REQUIRE(replay.apply(d).empty());
+    // Every loop the delta names runs along boundary edges of the mesh, in their direction.
+    REQUIRE(replay.loops_are_boundary(d.boundary_loops).empty());
+    loops_named += d.boundary_loops.size();
     const recon::MeshSnapshot snap = rec.snapshot();
     REQUIRE(snap.triangle_count() == replay.triangle_count());
     if (snap.triangle_count() > 0) {
@@ -119,6 +122,7 @@ TEST_CASE("incremental: every snapshot is a valid mesh and the deltas rebuild th
     }
   }
   CHECK(non_empty > 1);
+  CHECK(loops_named > 0);
   const recon::IncrementalResult fin = rec.finish();
   REQUIRE(replay.apply(rec.take_delta()).empty());
   std::vector<std::uint32_t> ids;
@@ -178,14 +182,4 @@ TEST_CASE("incremental: a second pass over meshed blocks re-opens them, one surf
   for (auto t : other.triangles) two.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
   CHECK(test::layered_vertices(two, 0.5 * r.stats.cube_mm) > 1000);
   CHECK(test::mean_height_error(r.mesh) < 0.02);
-}
-
-TEST_CASE("scratch figures", "[.scratch]") {
-  const std::vector<Vec3> pts = raster_scan(200, 160, 0.1, 0.4, 0.01, 11);
-  const recon::IncrementalResult inc = run_batches(pts, 200);
-  const recon::ReconstructResult batch = recon::reconstruct(pts);
-  const recon::MeshReport ri = recon::analyze(inc.mesh), rb = recon::analyze(batch.mesh);
-  WARN("inc: v " << ri.vertices << " t " << ri.triangles << " loops " << ri.boundary_loops << " comps " << ri.components << " outliers " << inc.outliers.size() << " steps " << inc.stats.meshing_steps << " cube " << inc.stats.cube_mm);
-  WARN("batch: v " << rb.vertices << " t " << rb.triangles << " loops " << rb.boundary_loops << " comps " << rb.components << " outliers " << batch.outliers.size() << " reduced " << batch.reduced_points << " cube " << batch.cube_mm);
-  WARN("err inc " << test::mean_height_error(inc.mesh) << " batch " << test::mean_height_error(batch.mesh));
 }

@@ -152,6 +152,19 @@ void ModbusEmulator::handle(void* ctx, const std::uint8_t* req, int length, std:
     sample = values_();
   }
   std::lock_guard lock(mutex_);
+  if (handler_) {
+    const ModbusTables t = handler_->tables(r.unit);
+    if (t.holding.empty()) return;  // no such unit on the line: no answer
+    handler_->before_reply(r);
+    modbus_mapping_t map{};
+    map.nb_registers = static_cast<int>(t.holding.size());
+    map.tab_registers = t.holding.data();
+    map.nb_input_registers = static_cast<int>(t.input.size());
+    map.tab_input_registers = t.input.data();
+    modbus_reply(mb(ctx), req, length, &map);
+    if (r.function == 6 || r.function == 16) handler_->after_write(r);
+    return;
+  }
   if (measure) image_.write(input_, holding_, sample);
   modbus_mapping_t map{};
   map.nb_registers = static_cast<int>(kRegisters);

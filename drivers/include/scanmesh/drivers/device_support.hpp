@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <mutex>
@@ -83,11 +84,15 @@ struct AtomicStats {
 class StateCell {
  public:
   DeviceState get() const { return state_.load(); }
-  /// Sets the state; calls on_state when it changed (or when a reason is given for kLost).
-  void set(DeviceState s, const std::string& reason, const SensorCallbacks* callbacks) {
+  /// Sets the state; calls on_state when it changed. Callbacks: any family's callback set with an
+  /// on_state member (SensorCallbacks, StageCallbacks).
+  template <class Callbacks>
+  void set(DeviceState s, const std::string& reason, const Callbacks* callbacks) {
     const DeviceState old = state_.exchange(s);
     if (callbacks && callbacks->on_state && (old != s)) callbacks->on_state(s, reason);
   }
+  /// Sets the state without reporting it.
+  void set(DeviceState s, const std::string&, std::nullptr_t) { state_.store(s); }
 
  private:
   std::atomic<DeviceState> state_{DeviceState::kClosed};
@@ -138,11 +143,28 @@ class Worker {
     std::unique_lock lock(mutex_);
     return !cv_.wait_for(lock, d, [this] { return stopping_; });
   }
+  /// Sleeps until `until`, stop, or notify() from another thread (work for the worker); returns
+  /// false when stop was requested.
+  bool sleep_until_notified(std::chrono::steady_clock::time_point until) {
+    std::unique_lock lock(mutex_);
+    cv_.wait_until(lock, until, [this] { return stopping_ || notified_; });
+    notified_ = false;
+    return !stopping_;
+  }
+  /// Wakes sleep_until_notified() (any thread).
+  void notify() {
+    {
+      std::lock_guard lock(mutex_);
+      notified_ = true;
+    }
+    cv_.notify_all();
+  }
 
  private:
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   bool stopping_ = false;
+  bool notified_ = false;
   std::jthread thread_;
 };
 

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "scanmesh/drivers/displacement_sensor.hpp"
+#include "scanmesh/drivers/motion_stage.hpp"
 
 namespace scanmesh::drivers {
 
@@ -40,5 +41,25 @@ std::vector<DriverInfo> displacement_drivers();
 /// Builds the device (not yet opened). Throws ConfigError for an unknown driver (listing the
 /// known ones) or an unusable combination (a TCP address for a serial-only driver, ...).
 std::unique_ptr<DisplacementSensor> make_displacement_sensor(const SensorConfig& config);
+
+/// Where and how to reach one motion stage. Exactly one of `port` and `tcp` is set.
+struct StageConfig {
+  std::string driver;   ///< "grbl", "modbus-stage", "ippdme"
+  std::string port;     ///< serial device path or usb:VID:PID[:SERIAL] (grbl, modbus-stage RTU)
+  std::string tcp;      ///< HOST:PORT (modbus-stage over Modbus TCP, ippdme)
+  unsigned baud = 0;    ///< 0 = the driver's default rate
+  char parity = 'N';    ///< serial parity 'N', 'E' or 'O'
+  int unit = -1;        ///< modbus-stage: the drive's unit for a single-axis profile; -1 = profile's
+  std::string profile;  ///< modbus-stage register-map profile file; empty = Leadshine-style XYZ
+  bool rotary_a = false;  ///< grbl: the controller has an A axis (a turntable)
+  StageOptions options;   ///< name, poll interval, timeouts, backoff
+};
+
+/// Every registered stage driver, in registration order.
+std::vector<DriverInfo> stage_drivers();
+
+/// Builds the stage (not yet opened). Throws ConfigError for an unknown driver (listing the
+/// known ones), a bad profile or an unusable combination.
+std::unique_ptr<MotionStage> make_motion_stage(const StageConfig& config);
 
 }  // namespace scanmesh::drivers

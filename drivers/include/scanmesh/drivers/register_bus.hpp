@@ -25,6 +25,9 @@ class RegisterBus {
   /// Writes holding registers (FC06 for one, FC16 for several) or throws DeviceError.
   virtual void write_registers(std::uint16_t address, std::span<const std::uint16_t> values) = 0;
   virtual const std::string& name() const = 0;
+  /// Addresses another unit on the same line from the next request on (several drives on one
+  /// RS-485 line, a TCP gateway). Unit 1..247. Buses with one fixed unit throw DeviceError.
+  virtual void select_unit(int unit);
 };
 
 using RegisterBusFactory = std::function<std::unique_ptr<RegisterBus>()>;

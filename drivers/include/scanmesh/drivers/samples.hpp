@@ -66,18 +66,46 @@ struct StagePose {
   friend constexpr bool operator==(const StagePose&, const StagePose&) = default;
 };
 
+/// What a stage is doing. The string forms (to_string) are part of `scanmesh stage --json`.
+enum class StageStatus : std::uint8_t {
+  kIdle,    ///< "idle": standing, ready for commands
+  kMoving,  ///< "moving": a move, jog or probing move is running (or held)
+  kHoming,  ///< "homing": the homing cycle is running
+  kAlarm,   ///< "alarm": the controller refuses motion until its alarm is cleared
+  kLost,    ///< "lost": the controller does not answer (the driver reconnects on its own)
+};
+
+std::string_view to_string(StageStatus status);
+/// Inverse of to_string; nullopt for an unknown word.
+std::optional<StageStatus> stage_status_from_string(std::string_view word);
+
 /// One position report of the stage.
 struct StageSample {
   std::uint64_t seq = 0;  ///< per stage, +1 per report
-  Timestamp t;            ///< host monotonic time of the position
+  Timestamp t;            ///< host monotonic time of the position (when the report arrived)
   StagePose pose;
+  std::optional<Timestamp> t_device;      ///< the controller's own clock, if it reports one
+  StageStatus status = StageStatus::kIdle;  ///< what the stage was doing at that report
+};
+
+/// A point the controller measured itself, already compensated for the probe tip (a CMM over
+/// I++ DME): the surface point and the unit surface normal it compensated along, machine frame.
+struct SurfacePoint {
+  double x_mm = 0;
+  double y_mm = 0;
+  double z_mm = 0;
+  double i = 0;
+  double j = 0;
+  double k = 0;
 };
 
 /// A touch-probe trigger: the stage position latched at the instant of contact.
 struct ProbeTrigger {
   std::uint64_t seq = 0;
   Timestamp t;  ///< host monotonic time of the latch
-  StagePose pose;
+  StagePose pose;  ///< the latched axes: the probe tip centre at contact (machine frame)
+  std::optional<Timestamp> t_device;    ///< the controller's clock at the latch, if it has one
+  std::optional<SurfacePoint> surface;  ///< the controller's own compensated point, if it gives one
 };
 
 }  // namespace scanmesh::drivers

@@ -3,6 +3,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -35,6 +36,20 @@ recon::PointCloud parse_xyz(std::string_view text, std::string_view name);
 recon::Mesh parse_ply(std::string_view bytes, std::string_view name);  // vertices + faces
 recon::Mesh parse_stl(std::string_view bytes, std::string_view name);
 recon::Mesh parse_obj(std::string_view text, std::string_view name);
+
+/// What a PLY file holds beside its points and faces, for readers that want it.
+struct PlyExtras {
+  /// Header lines skipped because their keyword is unknown (real raw scans bend the format:
+  /// some Stanford range scans carry a line 'bye'), each as "FILE:LINE: unknown header line
+  /// 'bye' skipped". The readers never refuse a file for such a line.
+  std::vector<std::string> warnings;
+  /// A range scan's rows (`range_grid` with `obj_info num_cols N`): the vertex indices of each
+  /// row of the grid, in column order (empty rows kept); empty without a range grid.
+  std::vector<std::vector<std::uint32_t>> range_rows;
+};
+recon::Mesh parse_ply(std::string_view bytes, std::string_view name, PlyExtras& extras);
+/// read_mesh of a .ply, with its extras. Throws InputError.
+recon::Mesh read_ply(const std::filesystem::path& file, PlyExtras& extras);
 
 /// One entry of a scanalyze registration file: `bmesh FILE tx ty tz qx qy qz qw`.
 struct ConfEntry {

@@ -29,7 +29,7 @@ struct IncrementalOptions {
   ReconstructOptions reconstruct;
   /// With an automatic cube, its edge is derived (auto_cube_size) from the spacing of the first
   /// `spacing_points` points of the sequence (all of them when fewer arrive before finish());
-  /// those points wait in a buffer until then. [1,000, 10,000,000], default 4,096.
+  /// those points wait in a buffer until then. [100, 10,000,000], default 4,096.
   std::size_t spacing_points = 4096;
   /// Edge of a block, in cubes: the unit of settling, meshing and re-opening. [8, 64], default
   /// 16 (a block must be wider than twice the front's reach).

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <span>
 #include <string>
@@ -52,6 +53,24 @@ struct ModbusImage {
   std::uint32_t count = 65536;
 };
 
+/// Register tables of one unit (spans into the handler's own storage).
+struct ModbusTables {
+  std::span<std::uint16_t> input;
+  std::span<std::uint16_t> holding;
+};
+
+/// Device behaviour plugged into a Modbus emulator instead of the measurement image: per-unit
+/// tables, refreshed before a request is answered and told about every write after it (the
+/// written values are then in the table). Called on the emulator thread under its lock.
+class ModbusHandler {
+ public:
+  virtual ~ModbusHandler() = default;
+  /// The tables of `unit`; an empty holding span: no such unit (the request gets no answer).
+  virtual ModbusTables tables(int unit) = 0;
+  virtual void before_reply(const ModbusRequest& request) { (void)request; }
+  virtual void after_write(const ModbusRequest& request) { (void)request; }
+};
+
 /// Common part: register image (input and holding tables, 2048 registers each, PDU addresses
 /// 0..2047), faults, request log and the server thread. One client connection at a time.
 class ModbusEmulator {
@@ -78,6 +97,8 @@ class ModbusEmulator {
   std::vector<std::uint16_t> input_registers(std::uint16_t address, std::size_t count) const;
   std::vector<std::uint16_t> holding_registers(std::uint16_t address, std::size_t count) const;
   std::vector<ModbusRequest> requests() const;
+  /// Serves `handler`'s tables instead of the image (set before start()).
+  void set_handler(std::shared_ptr<ModbusHandler> handler) { handler_ = std::move(handler); }
   /// Measurements taken from the value source.
   std::uint64_t measurements() const { return measurements_.load(); }
   /// Client connections accepted (TCP) so far.
@@ -104,6 +125,7 @@ class ModbusEmulator {
   std::vector<std::uint16_t> holding_;
   ModbusFaults faults_;
   std::vector<ModbusRequest> requests_;
+  std::shared_ptr<ModbusHandler> handler_;
   std::atomic<std::uint64_t> measurements_{0};
   std::jthread thread_;
 };
