@@ -122,9 +122,17 @@ struct JournalWriter::Impl {
     const mcap::MessageHeader h{id, sequence[id]++, log_time(t.ns), non_negative(t.ns)};
     auto out = writer.add_message(h, kPoseMessageBytes, 1);
     if (probe) {
-      encode_probe(drivers::ProbeTrigger{seq, t, pose}, out.data());
+      drivers::ProbeTrigger g;
+      g.seq = seq;
+      g.t = t;
+      g.pose = pose;
+      encode_probe(g, out.data());
     } else {
-      encode_stage(drivers::StageSample{seq, t, pose}, out.data());
+      drivers::StageSample s;
+      s.seq = seq;
+      s.t = t;
+      s.pose = pose;
+      encode_stage(s, out.data());
     }
     ++written;
     writer.flush_if_due();
