@@ -28,9 +28,12 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-/// CPU seconds (user + system) of each thread of this process, by thread name.
-std::map<std::string, double> thread_cpu() {
-  std::map<std::string, double> out;
+/// CPU seconds (user + system) of each thread of this process, by thread id, with its name.
+/// (By id, not summed by name: threads that end between two snapshots, such as the simulated
+/// scanner's ray casting, would make a name's sum go down.)
+using ThreadCpu = std::map<std::string, std::pair<std::string, double>>;
+ThreadCpu thread_cpu() {
+  ThreadCpu out;
   const double tick = static_cast<double>(::sysconf(_SC_CLK_TCK));
   for (const auto& e : std::filesystem::directory_iterator("/proc/self/task")) {
     std::ifstream comm(e.path() / "comm"), stat(e.path() / "stat");
@@ -46,9 +49,20 @@ std::map<std::string, double> thread_cpu() {
       if (i == 14) utime = std::stoull(field);
       if (i == 15) stime = std::stoull(field);
     }
-    out[name] += static_cast<double>(utime + stime) / tick;
+    out[e.path().filename().string()] = {name, static_cast<double>(utime + stime) / tick};
   }
   return out;
+}
+
+/// CPU seconds the threads named `name` used between two snapshots.
+double used_between(const ThreadCpu& before, const ThreadCpu& after, const std::string& name) {
+  double used = 0;
+  for (const auto& [tid, t] : after) {
+    if (t.first != name) continue;
+    const auto it = before.find(tid);
+    used += t.second - (it == before.end() ? 0.0 : it->second.second);
+  }
+  return used;
 }
 
 double percentile(std::vector<double> v, double p) {
@@ -159,8 +173,7 @@ int main(int argc, char** argv) {
       percentile(rtt_ms, 0.5), percentile(rtt_ms, 0.99), percentile(rtt_ms, 1.0), rtt_ms.size());
   double daemon_cpu = 0;
   for (const char* name : {"daemon-io", "scan-pipeline", "daemon-jobs"}) {
-    const double used =
-        (cpu1.count(name) ? cpu1.at(name) : 0) - (cpu0.count(name) ? cpu0.at(name) : 0);
+    const double used = used_between(cpu0, cpu1, name);
     std::printf("cpu %-14s %5.1f %% of one core\n", name, 100 * used / wall);
     daemon_cpu += used;
   }

@@ -143,14 +143,12 @@ ScanSource make_replay(const ReplayBackendConfig& config, const BackendRequest& 
 
 std::unique_ptr<ScanEngine> make_engine(const DaemonConfig& config, const Log& log) {
   if (config.backend == "sim")
-    return make_pipeline_engine(config, log, "sim", [c = config.sim](const BackendRequest& r) {
-      return make_sim(c, r);
-    });
+    return make_pipeline_engine(
+        config, log, "sim", [c = config.sim](const BackendRequest& r) { return make_sim(c, r); });
   if (config.backend == "replay")
-    return make_pipeline_engine(config, log, "replay",
-                                [c = config.replay](const BackendRequest& r) {
-                                  return make_replay(c, r);
-                                });
+    return make_pipeline_engine(
+        config, log, "replay",
+        [c = config.replay](const BackendRequest& r) { return make_replay(c, r); });
   if (config.backend == "devices")
     throw ConfigError(config.source.string() +
                       ": backend.kind: \"devices\" is not wired to the pipeline yet (a ScanBackend "

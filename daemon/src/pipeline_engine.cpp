@@ -69,8 +69,8 @@ EngineParams split_params(const Parameters& p) {
 std::string file_safe(const std::string& name) {
   std::string s;
   for (const char c : name.substr(0, 64))
-    s += (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_') ? c
-                                                                                          : '_';
+    s +=
+        (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_') ? c : '_';
   if (s.empty() || s.front() == '.') s.insert(s.begin(), '_');
   return s;
 }
@@ -152,7 +152,7 @@ struct Active {
 
   std::unique_ptr<acq::ScanBackend> backend;
   const acq::JournalRecorder* recorder = nullptr;  // owned by the pipeline
-  std::unique_ptr<acq::Pipeline> pipeline;  // last: destroyed (threads joined) first
+  std::unique_ptr<acq::Pipeline> pipeline;         // last: destroyed (threads joined) first
 
   double elapsed_s_locked(Clock::time_point now) const {
     const auto end = ended.value_or(now);
@@ -196,9 +196,9 @@ class PipelineEngine final : public ScanEngine {
         }
         const auto rec = catalog_->scan(id);
         if (rec)
-          log_.notice("scan " + std::to_string(id) + " '" + rec->name + "' was interrupted: " +
-                      std::to_string(rec->samples) + " samples kept in its journal" + what +
-                      " (resume or close it)");
+          log_.notice("scan " + std::to_string(id) + " '" + rec->name +
+                      "' was interrupted: " + std::to_string(rec->samples) +
+                      " samples kept in its journal" + what + " (resume or close it)");
       }
     }
     // The configured backend is built once now, so a bad configuration stops the daemon before
@@ -253,8 +253,7 @@ class PipelineEngine final : public ScanEngine {
                                   {"stage", m["stage"]}};
       nlohmann::json calibration = nlohmann::json::array();
       for (const auto& s : m["sensors"]) calibration.push_back(s["calibration"]);
-      ns.calibration =
-          nlohmann::json{{"sensors", calibration}, {"accumulator", m["accumulator"]}};
+      ns.calibration = nlohmann::json{{"sensors", calibration}, {"accumulator", m["accumulator"]}};
       ns.reduction = nlohmann::json{{"cube", ep.meshing["cube"]}};
       ns.meshing = ep.meshing;
       a->id = catalog_->create_scan(ns, wall_now());
@@ -345,7 +344,8 @@ class PipelineEngine final : public ScanEngine {
     std::lock_guard control(control_mu_);
     const acq::ScanRecord rec = interrupted(id);
     busy_check();
-    const Parameters parameters = params::from_json(rec.devices.value("parameters", nlohmann::json()));
+    const Parameters parameters =
+        params::from_json(rec.devices.value("parameters", nlohmann::json()));
     const EngineParams ep = split_params(parameters);
     // The new segment's samples come after everything the earlier segments hold.
     std::vector<std::filesystem::path> segments = segment_paths(rec);
@@ -508,8 +508,8 @@ class PipelineEngine final : public ScanEngine {
 
   Active* running_locked(const char* what) const {
     if (!active_)
-      throw EngineError(errc::kBadState, std::string("no scan is running (state idle): nothing to ") +
-                                             what);
+      throw EngineError(errc::kBadState,
+                        std::string("no scan is running (state idle): nothing to ") + what);
     return active_.get();
   }
 
@@ -588,8 +588,8 @@ class PipelineEngine final : public ScanEngine {
       {
         std::lock_guard lock(m_);
         active_.reset();
-        failed = last_status_ = ScanStatus{ScanState::kIdle, std::string("failed: ") + e.what(),
-                                           a->id, a->name, 0, -1, {}};
+        failed = last_status_ = ScanStatus{
+            ScanState::kIdle, std::string("failed: ") + e.what(), a->id, a->name, 0, -1, {}};
       }
       if (listener_) listener_->on_scan(failed);
       try {
@@ -693,14 +693,14 @@ class PipelineEngine final : public ScanEngine {
     if (final_state == acq::PipelineState::kFailed && !stop_reason.empty() &&
         st.mesh.points_in == 0 && st.reason.rfind("meshing: ", 0) == 0)
       final_state = acq::PipelineState::kStopped;
-    const acq::ScanState cat_state = final_state == acq::PipelineState::kCompleted
-                                         ? acq::ScanState::kCompleted
-                                     : final_state == acq::PipelineState::kStopped
-                                         ? acq::ScanState::kStopped
-                                         : acq::ScanState::kFailed;
+    const acq::ScanState cat_state =
+        final_state == acq::PipelineState::kCompleted ? acq::ScanState::kCompleted
+        : final_state == acq::PipelineState::kStopped ? acq::ScanState::kStopped
+                                                      : acq::ScanState::kFailed;
     std::string reason = cat_state == acq::ScanState::kStopped
                              ? (stop_reason.empty() ? st.reason : stop_reason)
-                             : cat_state == acq::ScanState::kFailed ? st.reason : "";
+                         : cat_state == acq::ScanState::kFailed ? st.reason
+                                                                : "";
     try {
       std::lock_guard lock(catalog_mu_);
       catalog_->finish(a->id, cat_state, reason, a->prior_samples + st.samples_recorded,
@@ -798,12 +798,12 @@ class PipelineEngine final : public ScanEngine {
       s.reason = a.stop_reason.empty() ? st.reason : a.stop_reason;
     s.elapsed_s = a.elapsed_s_locked(now);
     if (a.planned > 0)
-      s.progress = std::min(0.999, static_cast<double>(st.samples_received) /
-                                       static_cast<double>(a.planned));
+      s.progress = std::min(
+          0.999, static_cast<double>(st.samples_received) / static_cast<double>(a.planned));
     // Rate over the last second of what the journal acknowledged.
     auto& w = a.window;
-    if (!a.ended && (w.empty() || w.back().second != c.samples || now - w.back().first >
-                                                                       std::chrono::milliseconds(100)))
+    if (!a.ended && (w.empty() || w.back().second != c.samples ||
+                     now - w.back().first > std::chrono::milliseconds(100)))
       w.emplace_back(now, c.samples);
     while (w.size() > 2 && now - w.front().first > std::chrono::seconds(1)) w.pop_front();
     if (w.size() >= 2) {
@@ -812,9 +812,10 @@ class PipelineEngine final : public ScanEngine {
     }
     const double points_per_sample =
         c.samples > 0 ? static_cast<double>(c.points) / static_cast<double>(c.samples) : 0;
-    c.meshing_lag_s = c.rate_hz * points_per_sample > 0
-                          ? static_cast<double>(c.meshing_lag_points) / (c.rate_hz * points_per_sample)
-                          : 0;
+    c.meshing_lag_s =
+        c.rate_hz * points_per_sample > 0
+            ? static_cast<double>(c.meshing_lag_points) / (c.rate_hz * points_per_sample)
+            : 0;
     return s;
   }
 
@@ -859,9 +860,9 @@ class PipelineEngine final : public ScanEngine {
 
   /// The segments replayed through a pipeline without a journal: the recorded order, the
   /// recorded meshing; the live scan's mesh byte for byte.
-  std::shared_ptr<const recon::Mesh> replay_segments(const std::vector<std::filesystem::path>& files,
-                                                     const nlohmann::json& meshing,
-                                                     std::int64_t id) const {
+  std::shared_ptr<const recon::Mesh> replay_segments(
+      const std::vector<std::filesystem::path>& files, const nlohmann::json& meshing,
+      std::int64_t id) const {
     acq::ReplayOptions ro;
     ro.speed = 0;
     acq::ReplayBackend backend(files, ro);
@@ -872,8 +873,8 @@ class PipelineEngine final : public ScanEngine {
     pipeline.start();
     const acq::PipelineState state = pipeline.wait();
     if (state == acq::PipelineState::kFailed)
-      log_.warning("scan " + std::to_string(id) + ": replaying its journal: " +
-                   pipeline.stats().reason);
+      log_.warning("scan " + std::to_string(id) +
+                   ": replaying its journal: " + pipeline.stats().reason);
     return std::make_shared<const recon::Mesh>(pipeline.result());
   }
 
