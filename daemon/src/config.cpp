@@ -198,6 +198,8 @@ void read_sim(const toml::table* t, const std::string& source, const std::filesy
   r.number("views", s.views, 1, 360);
   r.number("profile_points", s.profile_points, 1, 65536);
   r.number("playback", s.playback, 0, 10000);
+  r.number("sensor_loss_at_s", s.sensor_loss_at_s, 0, 86400);
+  r.number("sensor_loss_s", s.sensor_loss_s, 1e-3, 60);
   r.check_unknown();
 }
 
@@ -348,7 +350,8 @@ std::vector<std::string> restart_needed(const DaemonConfig& a, const DaemonConfi
   if (s.part != t.part || s.mesh != t.mesh || s.sensor != t.sensor || s.path != t.path ||
       s.spacing_mm != t.spacing_mm || s.line_spacing_mm != t.line_spacing_mm ||
       s.speed_mm_s != t.speed_mm_s || s.noise_mm != t.noise_mm || s.seed != t.seed ||
-      s.views != t.views || s.profile_points != t.profile_points || s.playback != t.playback)
+      s.views != t.views || s.profile_points != t.profile_points || s.playback != t.playback ||
+      s.sensor_loss_at_s != t.sensor_loss_at_s || s.sensor_loss_s != t.sensor_loss_s)
     out.push_back("sim");
   if (a.replay.journal != b.replay.journal || a.replay.playback != b.replay.playback)
     out.push_back("replay");

@@ -108,6 +108,12 @@ ScanSource make_sim(const SimBackendConfig& config, const BackendRequest& reques
   }
   sim::SimulatedScannerOptions options;
   options.speed = s.playback;
+  if (s.sensor_loss_at_s > 0) {
+    options.sensor_loss_at =
+        std::chrono::nanoseconds(static_cast<std::int64_t>(s.sensor_loss_at_s * 1e9));
+    options.loss_duration =
+        std::chrono::nanoseconds(static_cast<std::int64_t>(s.sensor_loss_s * 1e9));
+  }
   auto scanner = std::make_unique<sim::SimulatedScanner>(std::move(part), cfg, options);
   out.planned_sensor_samples = planned_samples(scanner->simulator());
   out.backend = std::move(scanner);

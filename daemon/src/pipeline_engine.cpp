@@ -624,7 +624,7 @@ class PipelineEngine final : public ScanEngine {
       for (const auto& d : a.backend->devices())
         if (d.name == e.device) {
           DeviceInfo info = device_info(d, 0);
-          if (info.detail.empty()) info.detail = e.message;
+          if (info.state != DeviceState::kOk && info.detail.empty()) info.detail = e.message;
           listener_->on_device(info);
         }
     } else if (e.kind == "progress") {

@@ -500,6 +500,59 @@ TEST_CASE(
   CHECK(test::slurp(replayed) == test::slurp(stl));
 }
 
+TEST_CASE(
+    "the sensor lost mid-scan: the device shows lost, the scan pauses, resumes when it is back, "
+    "and no sample is lost",
+    "[e2e][faults]") {
+  Daemon d;
+  const auto cfg = d.dir / "loss.toml";
+  std::string text = test::slurp(kSimConfig);
+  text.replace(text.find("[sim]\n"), 6, "[sim]\nsensor_loss_at_s = 2\nsensor_loss_s = 1\n");
+  test::spit(cfg, text);
+  d.start_ready(cfg.string());
+  Client c = d.client();
+  c.request("watch");
+  REQUIRE(c.request("scan.start", proto::Object()
+                                      .set("name", "loss")
+                                      .set("parameters", Parameters{{"playback", std::int64_t{2}}}))
+              .cls == proto::MessageClass::kReply);
+  std::vector<std::string> seen;  // device and state changes, in order
+  ScanStatus end;
+  for (;;) {
+    auto m = c.read();
+    REQUIRE(m.has_value());
+    if (m->cls != proto::MessageClass::kEvent) continue;
+    if (m->event == "device") {
+      const DeviceInfo dev = proto::device_info_from(m->body);
+      if (seen.empty() || seen.back() != dev.name + " " + std::string(to_string(dev.state)))
+        seen.push_back(dev.name + " " + std::string(to_string(dev.state)));
+    } else if (m->event == "state") {
+      const ScanStatus s = proto::scan_status_from(m->body);
+      seen.push_back(std::string(to_string(s.state)) + (s.reason.empty() ? "" : " " + s.reason));
+      if (s.id == 1 && s.state == ScanState::kIdle) {
+        end = s;
+        break;
+      }
+    }
+  }
+  std::string order;
+  for (const auto& s : seen) order += s + "; ";
+  INFO(order);
+  const auto at = [&](const std::string& what) {
+    return std::find(seen.begin(), seen.end(), what) - seen.begin();
+  };
+  const auto n = static_cast<std::ptrdiff_t>(seen.size());
+  CHECK(at("sim-sensor lost") < n);
+  CHECK(at("paused device_lost: sim-sensor") < n);
+  CHECK(at("sim-sensor lost") < at("paused device_lost: sim-sensor"));
+  CHECK(at("paused device_lost: sim-sensor") < at("sim-sensor ok"));
+  CHECK(end.reason == "finished");
+  // Nothing was lost: the whole scan is in the journal.
+  CHECK(end.counters.samples == kSimRecords);
+  CHECK(end.counters.errors == 0);
+  CHECK_THAT(d.log(), Catch::Contains("device sim-sensor: lost"));
+}
+
 TEST_CASE("an interrupted scan can be closed instead", "[e2e][faults]") {
   Daemon d;
   d.start_ready();

@@ -34,6 +34,10 @@ struct SimBackendConfig {
   std::int64_t profile_points = 200;  ///< points per profile (line sensor), 1..65536
   /// Playback speed relative to the scan's own time, [0, 10000]: 1 live, 0 as fast as possible.
   double playback = 1;
+  /// A simulated fault: the sensor drops off this far into each scan (scan time, s; 0: never,
+  /// [0, 86400]) for `sensor_loss_s` (s, (0, 60], default 0.3), then comes back.
+  double sensor_loss_at_s = 0;
+  double sensor_loss_s = 0.3;
 };
 
 /// [replay]: a recorded scan journal played back as if live (backend = "replay").
