@@ -651,6 +651,19 @@ class PipelineEngine final : public ScanEngine {
 
   void supervise(std::shared_ptr<Active> a) noexcept {
     ::pthread_setname_np(::pthread_self(), "scan-supervisor");
+    // While the scan runs, its row's counts follow every few seconds: after a crash the row
+    // keeps the points mapped so far (recovery recounts the samples from the journal).
+    for (int tick = 1; !a->pipeline->wait_for(std::chrono::seconds(1)); ++tick) {
+      if (tick % 5 != 0) continue;
+      const acq::PipelineStats now = a->pipeline->stats();
+      try {
+        std::lock_guard lock(catalog_mu_);
+        catalog_->update_counts(a->id, a->prior_samples + now.samples_recorded,
+                                a->prior_points + now.points, wall_now());
+      } catch (const std::exception& e) {
+        log_.warning("scan " + std::to_string(a->id) + ": catalog: " + e.what());
+      }
+    }
     acq::PipelineState final_state = a->pipeline->wait();
     acq::PipelineStats st = a->pipeline->stats();
     // The pipeline publishes its last ingest counts after it hands the meshing thread its last
