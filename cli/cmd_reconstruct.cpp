@@ -22,6 +22,8 @@
 #include "scanmesh/recon/analysis.hpp"
 #include "scanmesh/recon/incremental.hpp"
 #include "scanmesh/recon/reconstruct.hpp"
+#include "scanmesh/reconstruction/reconstruction.hpp"
+#include "scanmesh/reconstruction/result_json.hpp"
 
 namespace scanmesh::cli {
 namespace {
@@ -52,13 +54,6 @@ struct ReconstructArgs {
   std::size_t stream = 0;  ///< --stream N: the incremental path, N points a batch (0: batch path)
 };
 
-/// One scan as read: its points in file order, each one's direction towards its sensor (when
-/// known) and, for a range scan, its rows (vertex indices a row: fed row by row with --stream).
-struct Scan {
-  std::vector<recon::Vec3> points, towards;
-  std::vector<std::vector<std::uint32_t>> rows;
-};
-
 /// Parses --cube: "auto", "none" or a positive size in input units.
 void apply_cube(const std::string& text, recon::ReconstructOptions& o) {
   if (text == "auto") {
@@ -80,116 +75,24 @@ void apply_cube(const std::string& text, recon::ReconstructOptions& o) {
   }
 }
 
-/// meshio::read_points_and_faces, and for a .ply its extras: each header line skipped is warned
-/// about on stderr (naming it), and a range scan's rows go to `rows` when given.
-recon::Mesh read_with_extras(const std::filesystem::path& in,
-                             std::vector<std::vector<std::uint32_t>>* rows) {
-  std::string ext = in.extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (ext == ".ply") {
-    meshio::PlyExtras extras;
-    try {
-      recon::Mesh mesh = meshio::read_ply(in, extras);
-      for (const auto& w : extras.warnings) std::fprintf(stderr, "scanmesh: warning: %s\n", w.c_str());
-      if (rows != nullptr) *rows = std::move(extras.range_rows);
-      return mesh;
-    } catch (const InputError&) {
-      // Faces (or a range grid) that do not parse do not spoil the points: as below.
-    }
-  }
-  return meshio::read_points_and_faces(in);
+/// The job as the library takes it (the options already validated).
+reconstruction::Request make_request(const ReconstructArgs& args,
+                                     const recon::ReconstructOptions& opt) {
+  reconstruction::Request r;
+  r.inputs = args.inputs;
+  r.conf = args.conf;
+  if (args.sensor.size() == 3) r.sensor = recon::Vec3(args.sensor[0], args.sensor[1], args.sensor[2]);
+  r.options = opt;
+  r.stream = args.stream;
+  return r;
 }
 
-/// One INPUT's points. A mesh file's vertices are its points; when they do not sample its
-/// surface as a scan does (a CAD export: few vertices, long edges across flat faces, slivers),
-/// `notes` gets a note saying so and how to sample the surface instead: the flat faces have no
-/// points, and the front leaves loops and wrong handles there (the casting's mesh: genus 8 and
-/// 5 loops, against exactly 9 and none from a sample of its surface).
-recon::PointCloud read_input(const std::string& in, std::vector<std::string>& notes,
-                             std::vector<std::vector<std::uint32_t>>* rows = nullptr) {
-  recon::Mesh mesh = read_with_extras(in, rows);
-  if (!mesh.triangles.empty()) {  // not a range scan or a bare vertex list
-    const recon::MeshReport r = recon::analyze(mesh);
-    if (!recon::scan_like_vertices(r)) {
-      char figures[160];
-      std::snprintf(figures, sizeof figures,
-                    " (%zu vertices, %.0f %% of the triangles under 20 degrees, longest edge "
-                    "%.1f mean edges)",
-                    r.referenced_vertices, 100.0 * r.frac_min_angle_below_20,
-                    r.mean_edge_length > 0 ? r.max_edge_length / r.mean_edge_length : 0.0);
-      notes.push_back(in +
-                      ": its vertices are too few or too uneven to sample the surface as a "
-                      "scan does" +
-                      figures +
-                      "; they are used as the points, but for a faithful mesh sample its "
-                      "surface: scanmesh generate --mesh-in " +
-                      in + " --points 100000 -o points.xyz");
-    }
-  }
-  return recon::PointCloud{std::move(mesh.vertices)};
-}
-
-/// Loads and merges every input (registered through the .conf when one is given). With a .conf,
-/// `towards_sensor` gets, for each point, its scan's +z axis in world coordinates: a range scan
-/// looks at the part along -z of its own frame (the Stanford scans: 99 % of bun000's surface
-/// faces +z). `notes` gets read_input's notes on the inputs.
-std::vector<Scan> load_scans(const ReconstructArgs& args, std::vector<std::string>& notes) {
-  std::vector<Scan> scans;
-  if (!args.conf.empty()) {
-    const auto entries = meshio::read_conf(args.conf);
-    std::map<std::string, const meshio::ConfEntry*> by_name;
-    for (const auto& e : entries) by_name[e.file.filename().string()] = &e;
-    std::vector<std::pair<std::filesystem::path, const meshio::ConfEntry*>> jobs;
-    if (args.inputs.empty()) {
-      for (const auto& e : entries) jobs.emplace_back(e.file, &e);
-    } else {
-      for (const auto& in : args.inputs) {
-        const std::filesystem::path p(in);
-        auto it = by_name.find(p.filename().string());
-        if (it == by_name.end())
-          throw ConfigError("input '" + in + "' is not listed in the registration file '" +
-                            args.conf + "'");
-        jobs.emplace_back(p, it->second);
-      }
-    }
-    for (const auto& [path, entry] : jobs) {
-      Scan scan;
-      recon::PointCloud c;
-      try {
-        c.points = read_with_extras(path, &scan.rows).vertices;
-      } catch (const InputError& e) {
-        if (!args.inputs.empty()) throw;
-        // The path came from the registration file, resolved against its folder: say so.
-        throw InputError(std::string(e.what()) + " (a scan listed in " + args.conf + ")");
-      }
-      const recon::Vec3 sensor =
-          entry->to_world(recon::Vec3::UnitZ()) - entry->to_world(recon::Vec3::Zero());
-      for (const auto& p : c.points) {
-        scan.points.push_back(entry->to_world(p));
-        scan.towards.push_back(sensor);
-      }
-      scans.push_back(std::move(scan));
-    }
-  } else {
-    for (const auto& in : args.inputs) {
-      Scan scan;
-      scan.points = read_input(in, notes, &scan.rows).points;
-      scans.push_back(std::move(scan));
-    }
-  }
-  return scans;
-}
-
-/// Every scan merged (the batch path's input).
-std::vector<recon::Vec3> load_inputs(const ReconstructArgs& args,
-                                     std::vector<recon::Vec3>& towards_sensor,
-                                     std::vector<std::string>& notes) {
-  std::vector<recon::Vec3> all;
-  for (const Scan& s : load_scans(args, notes)) {
-    all.insert(all.end(), s.points.begin(), s.points.end());
-    towards_sensor.insert(towards_sensor.end(), s.towards.begin(), s.towards.end());
-  }
-  return all;
+/// Warnings and notes on stderr as they come.
+reconstruction::Observer stderr_observer() {
+  reconstruction::Observer o;
+  o.warning = [](const std::string& w) { std::fprintf(stderr, "scanmesh: warning: %s\n", w.c_str()); };
+  o.note = [](const std::string& n) { std::fprintf(stderr, "scanmesh: note: %s\n", n.c_str()); };
+  return o;
 }
 
 int run_stream(const ReconstructArgs& args, const recon::ReconstructOptions& opt);
@@ -220,21 +123,6 @@ int run_reconstruct(const ReconstructArgs& args) {
   if (!args.sensor.empty() && !args.conf.empty())
     throw ConfigError("--sensor and --conf both say where the sensor was: give one");
   if (args.stream > 0) return run_stream(args, opt);
-  std::vector<recon::Vec3> towards_sensor;
-  std::vector<std::string> notes;  // about the inputs and the result: on stderr, and in the JSON
-  const std::vector<recon::Vec3> points = load_inputs(args, towards_sensor, notes);
-  for (const auto& note : notes) std::fprintf(stderr, "scanmesh: note: %s\n", note.c_str());
-  if (args.sensor.size() == 3) {
-    const recon::Vec3 at(args.sensor[0], args.sensor[1], args.sensor[2]);
-    towards_sensor.resize(points.size());
-    for (std::size_t i = 0; i < points.size(); ++i) towards_sensor[i] = at - points[i];
-  }
-  if (points.empty()) {
-    std::string names;
-    for (const auto& in : args.inputs) names += (names.empty() ? "" : ", ") + in;
-    throw InputError(names + ": no points in the input");
-  }
-  auto last = Clock::now();
   // --progress: one line on stderr as each stage starts (stdout stays the summary or the JSON).
   auto report = [&](std::string_view what) {
     if (!args.progress) return;
@@ -243,37 +131,12 @@ int run_reconstruct(const ReconstructArgs& args) {
                  static_cast<int>(what.size()), what.data());
     std::fflush(stderr);
   };
-  report("read " + std::to_string(points.size()) + " points");
-  std::map<std::string, double> seconds;
-  seconds["read"] = std::chrono::duration<double>(last - t0).count();
-  // Steps within a stage ("front/growth") are timed on their own and count into their stage.
-  std::map<std::string, double> step_seconds;
-  std::string current, current_step;
-  auto step_start = last;
-  auto observer = [&](std::string_view stage) {
-    const auto now = Clock::now();
-    if (!current_step.empty())
-      step_seconds[current_step] += std::chrono::duration<double>(now - step_start).count();
-    current_step.clear();
-    step_start = now;
-    if (stage.find('/') != std::string_view::npos) {  // --progress shows the stages only
-      current_step = stage;
-      return;
-    }
-    if (!current.empty()) seconds[current] += std::chrono::duration<double>(now - last).count();
-    last = now;
-    current = stage == "done" ? "" : std::string(stage);
-    if (stage != "done") report(stage);
-  };
-  recon::ReconstructResult res = recon::reconstruct(points, opt, observer, towards_sensor);
-  if (res.untangle.skipped > 0) {
-    notes.push_back(std::to_string(res.untangle.skipped) +
-                    " more gaps whose patch would cross the mesh stay open: untangling stops after " +
-                    std::to_string(recon::kMaxUntangledGaps) +
-                    " (so many usually means noise thicker than the spacing, or points that are "
-                    "not a surface)");
-    std::fprintf(stderr, "scanmesh: note: %s\n", notes.back().c_str());
-  }
+  reconstruction::Observer observer = stderr_observer();
+  observer.stage = report;
+  reconstruction::BatchOutcome outcome =
+      reconstruction::run_batch(make_request(args, opt), observer);
+  recon::ReconstructResult& res = outcome.result;
+  std::map<std::string, double>& seconds = outcome.seconds;
 
   auto t = Clock::now();
   report("write " + args.output);
@@ -301,59 +164,10 @@ int run_reconstruct(const ReconstructArgs& args) {
   report("done");
 
   if (args.json) {
-    nlohmann::json j;
-    j["input_points"] = res.input_points;
-    j["reduced_points"] = res.reduced_points;
-    j["vertices"] = res.mesh.vertices.size();
-    j["triangles"] = res.mesh.triangles.size();
-    put_topology(j, rep);
-    j["outliers"] = res.outliers.size();
-    j["far_points"] = res.far_points;
-    j["cube"] = res.cube_mm;
-    j["spacing"] = {{"nearest", res.spacing.nearest_mm},
-                    {"cross", res.spacing.cross_mm},
-                    {"thickness", res.spacing.thickness_mm},
-                    {"thickness_few", res.spacing.thickness_few_mm},
-                    {"thickness_shape", res.spacing.thickness_shape}};
-    j["seeds"] = res.seeds;
-    j["relaxed_triangles"] = res.relaxed_triangles;
-    j["filled_gaps"] = res.filled_gaps;
-    j["closed_gaps"] = res.gaps.filled;
-    j["zipped_slits"] = res.zip.zipped;
-    j["untangled_gaps"] = res.untangle.closed;
-    j["untangle_removed_triangles"] = res.untangle.removed;
-    j["untangle_skipped_gaps"] = res.untangle.skipped;
-    j["untangle_split_fans"] = res.untangle.split_fans;
-    j["untangle_widened"] = res.untangle.widened;
-    j["untangle_unfillable"] = res.untangle.unfillable;
-    j["untangle_dropped_points"] = res.untangle.dropped.size();
-    j["removed_fan_triangles"] = res.removed_fan_triangles;
-    j["inserted_points"] = res.refine.inserted;
-    j["inserted_by_edge_split"] = res.refine.edge_splits;
-    j["refine_flips"] = res.refine.flips;
-    j["sliver_flips"] = res.refine.sliver_flips;
-    put_fill(j, res.fill);
-    if (opt.denoise) put_denoise(j, res.denoise);
-    if (opt.sharpen) put_sharpen(j, res.sharpen);
-    j["edge_evaluations"] = res.edge_evaluations;
-    j["points_scanned"] = res.points_scanned;
-    j["skipped_evaluations"] = res.skipped_evaluations;
-    j["turning_points"] = res.turning_points;
-    j["bulk_patches"] = res.bulk_patches;
-    j["bulk_triangles"] = res.bulk_triangles;
-    j["dropped_components"] = res.dropped_components;
-    j["dropped_specks"] = res.dropped_specks;
-    // Representatives whose projection cut across a sharp edge, a corner or a step, and of
-    // those the vertices the mesh has at the measured point.
-    j["feature_points"] = res.features;
-    j["feature_points_measured"] = res.restored;
-    j["peeled_chords"] = res.peeled_chords;
+    nlohmann::json j = reconstruction::to_json(outcome, opt, rep);
     j["output"] = args.output;
-    j["notes"] = notes;
     if (!args.preview.empty()) j["preview"] = args.preview;
     j["seconds_total"] = total;
-    j["seconds"] = seconds;
-    j["step_seconds"] = step_seconds;
     std::cout << j.dump() << "\n";
   } else {
     std::cout << std::fixed << std::setprecision(3);
@@ -458,86 +272,19 @@ int run_stream(const ReconstructArgs& args, const recon::ReconstructOptions& opt
   auto secs = [](Clock::time_point a, Clock::time_point b) {
     return std::chrono::duration<double>(b - a).count();
   };
-  recon::IncrementalOptions io;
-  io.reconstruct = opt;
-  // The on-request passes run on the finished mesh (below), as the batch path runs them last.
-  io.reconstruct.fill.max_edges = 0;
-  io.reconstruct.denoise = false;
-  io.reconstruct.sharpen = false;
-  std::vector<std::string> notes;
-  std::vector<Scan> scans = load_scans(args, notes);
-  for (const auto& note : notes) std::fprintf(stderr, "scanmesh: note: %s\n", note.c_str());
-  std::size_t total = 0;
-  for (Scan& sc : scans) {
-    total += sc.points.size();
-    if (args.sensor.size() == 3) {
-      const recon::Vec3 at(args.sensor[0], args.sensor[1], args.sensor[2]);
-      sc.towards.resize(sc.points.size());
-      for (std::size_t i = 0; i < sc.points.size(); ++i) sc.towards[i] = at - sc.points[i];
-    }
-  }
-  if (total == 0) {
-    std::string names;
-    for (const auto& in : args.inputs) names += (names.empty() ? "" : ", ") + in;
-    throw InputError(names + ": no points in the input");
-  }
-  const double read_seconds = secs(t0, Clock::now());
-  const auto clock_start = Clock::now();
-  recon::IncrementalReconstructor rec(io, [clock_start] {
-    return std::chrono::duration<double>(Clock::now() - clock_start).count();
-  });
-  ProgressBar bar(args.progress, total);
-  std::size_t batches = 0, deltas = 0, fed = 0;
-  double max_batch = 0, delta_seconds = 0;
-  std::vector<recon::Vec3> pts, dirs;
-  auto feed = [&](std::span<const recon::Vec3> p, std::span<const recon::Vec3> d) {
-    const auto a = Clock::now();
-    if (d.empty()) {
-      rec.add(p);
-    } else {
-      rec.add(p, d, recon::SensorData::kDirection);
-    }
-    const auto b = Clock::now();
-    max_batch = std::max(max_batch, secs(a, b));
-    ++batches;
-    fed += p.size();
-    if (!rec.take_delta().empty()) ++deltas;
-    delta_seconds += secs(b, Clock::now());
-    bar.update(fed, rec.stats());
+  reconstruction::Observer observer = stderr_observer();
+  std::unique_ptr<ProgressBar> bar;
+  observer.batch = [&](std::size_t fed, std::size_t total, const recon::IncrementalStats& st) {
+    if (!bar) bar = std::make_unique<ProgressBar>(args.progress, total);
+    bar->update(fed, st);
   };
-  for (const Scan& sc : scans) {
-    const bool dir = !sc.towards.empty();
-    if (!sc.rows.empty()) {
-      for (const auto& row : sc.rows) {
-        if (row.empty()) continue;
-        pts.clear();
-        dirs.clear();
-        for (std::uint32_t v : row) {
-          pts.push_back(sc.points[v]);
-          if (dir) dirs.push_back(sc.towards[v]);
-        }
-        feed(pts, dirs);
-      }
-      continue;
-    }
-    for (std::size_t i = 0; i < sc.points.size(); i += args.stream) {
-      const std::size_t n = std::min(args.stream, sc.points.size() - i);
-      feed(std::span<const recon::Vec3>(sc.points.data() + i, n),
-           dir ? std::span<const recon::Vec3>(sc.towards.data() + i, n) : std::span<const recon::Vec3>());
-    }
+  reconstruction::StreamOutcome outcome =
+      reconstruction::run_stream(make_request(args, opt), observer);
+  recon::IncrementalResult& res = outcome.result;
+  if (bar) {
+    bar->update(res.stats.points_in, res.stats, true);
+    bar->end();
   }
-  const auto f0 = Clock::now();
-  recon::IncrementalResult res = rec.finish();
-  if (!rec.take_delta().empty()) ++deltas;
-  const double finish_seconds = secs(f0, Clock::now());
-  bar.update(fed, res.stats, true);
-  bar.end();
-  recon::DenoiseStats denoise;
-  recon::SharpenStats sharpen;
-  recon::FillStats fill;
-  if (opt.denoise) denoise = recon::denoise_mesh(res.mesh, opt.denoise_options);
-  if (opt.sharpen) sharpen = recon::sharpen_edges(res.mesh, opt.sharpen_options);
-  if (opt.fill.max_edges > 0) fill = recon::fill_holes(res.mesh, opt.fill);
   auto t = Clock::now();
   write_mesh_file(res.mesh, args.output, args.ascii);
   if (!args.outliers_file.empty()) meshio::write_points_xyz(res.outliers, args.outliers_file);
@@ -553,40 +300,16 @@ int run_stream(const ReconstructArgs& args, const recon::ReconstructOptions& opt
   const double total_seconds = secs(t0, Clock::now());
   const recon::IncrementalStats& st = res.stats;
   if (args.json) {
-    nlohmann::json j;
-    j["input_points"] = st.points_in;
-    j["reduced_points"] = res.mesh.vertices.size() + res.outliers.size() - res.far_points;
-    j["vertices"] = res.mesh.vertices.size();
-    j["triangles"] = res.mesh.triangles.size();
-    put_topology(j, rep);
-    j["outliers"] = res.outliers.size();
-    j["far_points"] = res.far_points;
-    j["cube"] = st.cube_mm;
-    j["stream"] = args.stream;
-    j["batches"] = batches;
-    j["max_batch_seconds"] = max_batch;
-    j["finish_seconds"] = finish_seconds;
-    j["deltas"] = deltas;
-    j["reopened_blocks"] = st.reopened_blocks;
-    j["meshing_steps"] = st.meshing_steps;
-    j["meshed_blocks"] = st.meshed_blocks_total;
-    j["settle_to_mesh_p99_seconds"] = st.settle_to_mesh_p99_seconds;
-    j["take_delta_seconds"] = delta_seconds;
-    if (opt.fill.max_edges > 0) put_fill(j, fill);
-    if (opt.denoise) put_denoise(j, denoise);
-    if (opt.sharpen) put_sharpen(j, sharpen);
+    nlohmann::json j = reconstruction::to_json(outcome, opt, rep);
+    j["seconds"]["write"] = write_seconds;
     j["output"] = args.output;
-    j["notes"] = notes;
     if (!args.preview.empty()) j["preview"] = args.preview;
     j["seconds_total"] = total_seconds;
-    nlohmann::json seconds = {{"read", read_seconds}, {"write", write_seconds}};
-    for (const auto& [k, v] : st.seconds) seconds[k] = v;
-    j["seconds"] = seconds;
     std::cout << j.dump() << "\n";
   } else {
     std::cout << std::fixed << std::setprecision(3);
-    std::cout << "input points     " << st.points_in << "  (streamed: " << batches
-              << " batches, the largest " << max_batch << " s)\n"
+    std::cout << "input points     " << st.points_in << "  (streamed: " << outcome.batches
+              << " batches, the largest " << outcome.max_batch_seconds << " s)\n"
               << "cube             " << st.cube_mm << "\n"
               << "vertices         " << res.mesh.vertices.size() << "\n"
               << "triangles        " << res.mesh.triangles.size() << "\n"
@@ -594,14 +317,14 @@ int run_stream(const ReconstructArgs& args, const recon::ReconstructOptions& opt
               << "components       " << rep.components << "\n"
               << "genus            " << rep.genus << "\n"
               << "outliers         " << res.outliers.size() << "\n"
-              << "deltas           " << deltas << " (" << st.meshing_steps << " meshing steps, "
+              << "deltas           " << outcome.deltas << " (" << st.meshing_steps << " meshing steps, "
               << st.reopened_blocks << " blocks re-opened)\n"
               << "manifold         "
               << (rep.non_manifold_edges == 0 && rep.non_manifold_vertices == 0 ? "yes" : "NO")
               << ", orientation " << (rep.orientation_consistent ? "consistent" : "INCONSISTENT")
               << "\n"
               << "written          " << args.output << "\n"
-              << "seconds          " << total_seconds << " (finish " << finish_seconds << ")\n";
+              << "seconds          " << total_seconds << " (finish " << outcome.finish_seconds << ")\n";
   }
   return kExitOk;
 }

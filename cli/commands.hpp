@@ -21,6 +21,7 @@
 #include "scanmesh/recon/fill.hpp"
 #include "scanmesh/recon/mesh.hpp"
 #include "scanmesh/recon/sharpen.hpp"
+#include "scanmesh/reconstruction/result_json.hpp"
 
 namespace scanmesh::cli {
 
@@ -62,48 +63,12 @@ inline recon::Vec3 axis_of(const std::string& name) {
   return recon::Vec3::UnitZ();
 }
 
-/// The topology fields `reconstruct --json` and `fill --json` report about the mesh they wrote.
-inline void put_topology(nlohmann::json& j, const recon::MeshReport& r) {
-  j["boundary_loops"] = r.boundary_loops;
-  j["boundary_loop_lengths"] = r.boundary_loop_lengths;
-  j["components"] = r.components;
-  j["genus"] = r.genus;
-  j["non_manifold_edges"] = r.non_manifold_edges;
-  j["non_manifold_vertices"] = r.non_manifold_vertices;
-  j["orientation_consistent"] = r.orientation_consistent;
-}
-
-/// The hole-filling fields both commands report.
-inline void put_fill(nlohmann::json& j, const recon::FillStats& f) {
-  j["filled_holes"] = f.filled;
-  j["fill_triangles"] = f.triangles;
-  j["fill_vertices"] = f.vertices;
-  j["faired_holes"] = f.faired;
-  j["crossing_loops"] = f.crossing;
-}
-
-/// The edge-recovery fields `sharpen --json` and `reconstruct --sharpen --json` report.
-inline void put_sharpen(nlohmann::json& j, const recon::SharpenStats& s) {
-  j["bevel_triangles"] = s.bevel_triangles;
-  j["edge_vertices"] = s.edge_vertices;
-  j["corner_vertices"] = s.corner_vertices;
-  j["flipped_edges"] = s.flipped;
-  j["refused_bevels"] = s.refused;
-  j["tidied_edges"] = s.tidied;
-  j["rounded_bevels"] = s.rounded;
-}
-
-/// The noise-removal fields `denoise --json` and `reconstruct --denoise --json` report.
-inline void put_denoise(nlohmann::json& j, const recon::DenoiseStats& s) {
-  j["denoised_vertices"] = s.moved;
-  j["denoise_refused"] = s.refused;
-  j["denoise_clamped"] = s.clamped;
-  j["denoise_mean_move"] = s.mean_move;
-  j["denoise_max_move"] = s.max_move;
-  j["denoise_noise_deg"] = s.noise_deg;
-  j["denoise_feature_deg"] = s.feature_deg;
-  j["denoise_noise"] = s.noise_mm;
-}
+// The JSON fields of a mesh's topology and of the passes (fill, sharpen, denoise): one form,
+// reconstruction/'s.
+using reconstruction::put_denoise;
+using reconstruction::put_fill;
+using reconstruction::put_sharpen;
+using reconstruction::put_topology;
 
 /// Reads the mesh a command works on (fill, sharpen): a file of vertices only (a point cloud)
 /// is refused, naming the command that meshes it.

@@ -188,29 +188,33 @@ void read_sim(const toml::table* t, const std::string& source, const std::filesy
       r.problem("part", "unknown part '" + s.part + "' (built-in parts: " + list + ")");
     }
   }
-  r.choice("sensor", s.sensor, {"point", "line"});
+  r.choice("sensor", s.sensor, {"point", "line", "probe"});
   r.choice("path", s.path, {"raster", "serpentine", "rotary", "views"});
   r.number("spacing_mm", s.spacing_mm, 1e-3, 50);
   r.number("line_spacing_mm", s.line_spacing_mm, 0, 500);
   r.number("speed_mm_s", s.speed_mm_s, 1e-3, 5000);
   r.number("noise_mm", s.noise_mm, 0, 5);
   r.number("seed", s.seed, 0, 9.0e15);
+  r.number("views", s.views, 1, 360);
+  r.number("profile_points", s.profile_points, 1, 65536);
   r.number("playback", s.playback, 0, 10000);
+  r.number("sensor_loss_at_s", s.sensor_loss_at_s, 0, 86400);
+  r.number("sensor_loss_s", s.sensor_loss_s, 1e-3, 60);
   r.check_unknown();
 }
 
 void read_replay(const toml::table* t, const std::string& source, const std::filesystem::path& base,
                  ReplayBackendConfig& p, bool needed, std::vector<std::string>& problems) {
   TableReader r(t, "replay", source, problems);
-  r.path("stream", p.stream, base);
+  r.path("journal", p.journal, base);
   r.number("playback", p.playback, 0, 10000);
   r.check_unknown();
   if (!needed) return;
   std::error_code ec;
-  if (p.stream.empty())
-    r.problem("stream", "is required with backend = \"replay\"");
-  else if (!std::filesystem::is_regular_file(p.stream, ec))
-    r.problem("stream", "cannot read '" + p.stream.string() + "': no such file");
+  if (p.journal.empty())
+    r.problem("journal", "is required with backend = \"replay\"");
+  else if (!std::filesystem::is_regular_file(p.journal, ec))
+    r.problem("journal", "cannot read '" + p.journal.string() + "': no such file");
 }
 
 void read_devices(const toml::table& root, const std::string& source,
@@ -346,9 +350,10 @@ std::vector<std::string> restart_needed(const DaemonConfig& a, const DaemonConfi
   if (s.part != t.part || s.mesh != t.mesh || s.sensor != t.sensor || s.path != t.path ||
       s.spacing_mm != t.spacing_mm || s.line_spacing_mm != t.line_spacing_mm ||
       s.speed_mm_s != t.speed_mm_s || s.noise_mm != t.noise_mm || s.seed != t.seed ||
-      s.playback != t.playback)
+      s.views != t.views || s.profile_points != t.profile_points || s.playback != t.playback ||
+      s.sensor_loss_at_s != t.sensor_loss_at_s || s.sensor_loss_s != t.sensor_loss_s)
     out.push_back("sim");
-  if (a.replay.stream != b.replay.stream || a.replay.playback != b.replay.playback)
+  if (a.replay.journal != b.replay.journal || a.replay.playback != b.replay.playback)
     out.push_back("replay");
   bool devices_same = a.devices.size() == b.devices.size();
   for (std::size_t i = 0; devices_same && i < a.devices.size(); ++i)

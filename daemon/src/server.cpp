@@ -741,9 +741,11 @@ proto::Object Server::config_object() const {
   sim.set("part", c.sim.part).set("mesh", c.sim.mesh.string()).set("sensor", c.sim.sensor);
   sim.set("path", c.sim.path).set("spacing_mm", c.sim.spacing_mm);
   sim.set("line_spacing_mm", c.sim.line_spacing_mm).set("speed_mm_s", c.sim.speed_mm_s);
-  sim.set("noise_mm", c.sim.noise_mm).set("seed", c.sim.seed).set("playback", c.sim.playback);
+  sim.set("noise_mm", c.sim.noise_mm).set("seed", c.sim.seed).set("views", c.sim.views);
+  sim.set("profile_points", c.sim.profile_points).set("playback", c.sim.playback);
+  sim.set("sensor_loss_at_s", c.sim.sensor_loss_at_s).set("sensor_loss_s", c.sim.sensor_loss_s);
   proto::Object replay;
-  replay.set("stream", c.replay.stream.string()).set("playback", c.replay.playback);
+  replay.set("journal", c.replay.journal.string()).set("playback", c.replay.playback);
   std::vector<proto::Object> devices;
   for (const auto& d : c.devices) {
     proto::Object o;

@@ -39,7 +39,7 @@ TEST_CASE("every daemon configuration in config/ loads", "[daemon][config]") {
   CHECK(sim.sim.sensor == "line");
   CHECK(sim.socket_path == "/run/scanmesh/control.sock");
   CHECK(sim.export_dirs == std::vector<std::filesystem::path>{"/var/lib/scanmesh/exports"});
-  CHECK(std::get<std::int64_t>(sim.scan_defaults.at("remesh_points")) == 10000);
+  CHECK(std::get<std::string>(sim.scan_defaults.at("mesher")) == "incremental");
 }
 
 TEST_CASE("defaults hold when the file is empty", "[daemon][config]") {
@@ -89,7 +89,7 @@ x = 1
            "/etc/scanmesh/x.toml: backend.kind: must be one of sim, replay, devices, got 'magic'",
            "/etc/scanmesh/x.toml: sim.part: unknown part 'teapot' (built-in parts: container, "
            "sphere, cylinder, steps)",
-           "/etc/scanmesh/x.toml: sim.sensor: must be one of point, line, got 'sonar'",
+           "/etc/scanmesh/x.toml: sim.sensor: must be one of point, line, probe, got 'sonar'",
            "/etc/scanmesh/x.toml: sim.spacing_mm: must be in [0.001, 50], got -1",
            "/etc/scanmesh/x.toml: colour: unknown table",
        })
@@ -105,11 +105,11 @@ TEST_CASE("the replay and devices backends check their files before anything ope
           "[daemon][config]") {
   test::TempDir dir;
   const std::string replay = error_of(
-      "[backend]\nkind = \"replay\"\n[replay]\nstream = \"gone.stream\"\n", dir / "d.toml");
-  CHECK_THAT(replay, Catch::Contains("replay.stream: cannot read '" +
-                                     (dir / "gone.stream").string() + "': no such file"));
+      "[backend]\nkind = \"replay\"\n[replay]\njournal = \"gone.mcap\"\n", dir / "d.toml");
+  CHECK_THAT(replay, Catch::Contains("replay.journal: cannot read '" +
+                                     (dir / "gone.mcap").string() + "': no such file"));
   CHECK_THAT(error_of("[backend]\nkind = \"replay\"\n"),
-             Catch::Contains("replay.stream: is required"));
+             Catch::Contains("replay.journal: is required"));
   test::spit(dir / "lkg.toml", "[sensor]\ndriver = \"no-such-driver\"\nbaud = 3\n");
   const std::string devices = error_of(
       "[backend]\nkind = \"devices\"\n[[devices]]\nrole = \"sensor\"\nconfig = \"lkg.toml\"\n",

@@ -15,6 +15,8 @@
 
 #include "daemon/daemon_process.hpp"
 #include "daemon/eventually.hpp"
+#include "scanmesh/acquisition/catalog.hpp"
+#include "scanmesh/acquisition/journal.hpp"
 #include "scanmesh/daemon/client.hpp"
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/recon/analysis.hpp"
@@ -30,8 +32,26 @@ using test::TempDir;
 namespace {
 
 const std::string kSimConfig = SCANMESH_SOURCE_DIR "/config/scanmesh-sim.toml";
-/// The simulated scan of config/scanmesh-sim.toml: 362 profiles of 200 points.
-constexpr std::uint64_t kSimSamples = 72400;
+/// The simulated scan of config/scanmesh-sim.toml: sensor samples (profiles of 200 points) and
+/// the records the journal acknowledges (sensor samples, stage samples).
+constexpr std::uint64_t kSimSensorSamples = 72400;
+constexpr std::uint64_t kSimRecords = 72776;
+
+/// Sensor samples and all records a journal holds.
+std::pair<std::uint64_t, std::uint64_t> journal_samples(const std::filesystem::path& file) {
+  const acq::JournalReport r = acq::check_journal(file);
+  std::uint64_t sensor = 0;
+  for (const auto& c : r.channels)
+    if (c.channel.kind == acq::ChannelKind::kSensor) sensor += c.samples;
+  return {sensor, r.samples};
+}
+
+/// The catalog row as another process sees it (read-only, beside the daemon).
+acq::ScanRecord catalog_row(const std::filesystem::path& state, std::int64_t id) {
+  const auto row = acq::Catalog::open_read_only(state / "catalog.sqlite").scan(id);
+  REQUIRE(row.has_value());
+  return *row;
+}
 
 struct Daemon {
   TempDir dir;
@@ -146,7 +166,7 @@ TEST_CASE(
       mask(nlohmann::ordered_json::parse(proto::event_line("state", proto::to_object(end))), tmp)
           .dump());
   CHECK(end.reason == "finished");
-  CHECK(end.counters.samples == kSimSamples);
+  CHECK(end.counters.samples == kSimRecords);
   exchange("watch", proto::Object().set("enable", false));
   exchange("status");
   exchange("scan.list");
@@ -159,6 +179,27 @@ TEST_CASE(
   exchange("scan.pause");
   exchange("frobnicate");
   compare_golden(transcript, "e2e_sim.golden.jsonl");
+
+  // The journal on disk: complete (summary and footer), every acknowledged record in it; the
+  // catalog row finished with the same count.
+  const acq::ScanRecord row = catalog_row(d.state, id);
+  CHECK(row.state == acq::ScanState::kCompleted);
+  REQUIRE(row.segments.size() == 1);
+  const std::filesystem::path journal = row.segments[0].path;
+  const acq::JournalReport report = acq::check_journal(journal);
+  CHECK(report.scan.summary_ok);
+  CHECK_FALSE(report.scan.torn_tail);
+  CHECK(report.samples == kSimRecords);
+  CHECK(journal_samples(journal).first == kSimSensorSamples);
+  CHECK(row.samples == kSimRecords);
+
+  // The exported mesh is `scanmesh replay` of the journal, byte for byte.
+  const auto replayed = d.dir / "replayed.stl";
+  const auto replay =
+      test::run_program(SCANMESH_EXE, d.dir, {"replay", journal.string(), "-o", replayed.string()});
+  INFO(replay.out << replay.err);
+  REQUIRE(replay.status == 0);
+  CHECK(test::slurp(replayed) == test::slurp(d.state / "exports" / "e2e.stl"));
 
   // The exported mesh, read back: manifold, consistently oriented, on the part's surface.
   REQUIRE(exported.cls == proto::MessageClass::kReply);
@@ -205,10 +246,63 @@ TEST_CASE(
       [&] { return proto::status_info_from(c.request("status").body).scan.counters.samples > 0; }));
   d.process->signal(SIGTERM);
   CHECK(d.process->wait() == 0);
-  // The journal ends with its end record (complete), the record says stopped.
-  const std::string journal = test::slurp(d.state / "scans/scan-1.stream");
-  CHECK(journal.rfind("\nE ") != std::string::npos);
-  CHECK_THAT(test::slurp(d.state / "scans/scan-1.toml"), Catch::Contains("state = 'stopped'"));
+  // The journal was closed (summary, footer: any MCAP reader opens it), the row says stopped
+  // with the samples the journal holds.
+  const acq::ScanRecord row = catalog_row(d.state, 1);
+  CHECK(row.state == acq::ScanState::kStopped);
+  CHECK(row.stop_reason == "daemon stopping");
+  REQUIRE(row.segments.size() == 1);
+  CHECK(row.segments[0].state == "closed");
+  const acq::JournalReport report = acq::check_journal(row.segments[0].path);
+  CHECK(report.scan.summary_ok);
+  CHECK(report.scan.footer_ok);
+  CHECK_FALSE(report.scan.torn_tail);
+  CHECK(report.samples == row.samples);
+  CHECK(row.samples > 0);
+  CHECK(row.samples < kSimRecords);
+}
+
+TEST_CASE(
+    "the replay backend plays a recorded journal through the pipeline: the live scan's mesh, "
+    "byte for byte",
+    "[e2e]") {
+  Daemon d;
+  // A live scan recorded by `scanmesh scan` (the same simulated scan as config/scanmesh-sim.toml).
+  const auto journal = d.dir / "live.mcap";
+  const auto live = d.dir / "live.stl";
+  const auto scan = test::run_program(
+      SCANMESH_EXE, d.dir,
+      {"scan", "--sim", "container", "--sensor", "line", "--path", "serpentine", "--spacing", "0.5",
+       "--speed", "20", "--noise", "0.01", "--journal", journal.string(), "-o", live.string()});
+  INFO(scan.out << scan.err);
+  REQUIRE(scan.status == 0);
+  const auto cfg = d.dir / "replay.toml";
+  test::spit(cfg,
+             "[backend]\nkind = \"replay\"\n[replay]\njournal = \"live.mcap\"\n"
+             "playback = 0\n");
+  d.start_ready(cfg.string());
+  Client c = d.client();
+  CHECK(c.request("version").body.get_string("backend") == "replay");
+  c.request("watch");
+  const proto::Message started = c.request("scan.start", proto::Object().set("name", "again"));
+  REQUIRE(started.cls == proto::MessageClass::kReply);
+  const ScanStatus end = wait_scan_end(c, 1);
+  CHECK(end.reason == "finished");
+  CHECK(end.counters.samples == kSimRecords);
+  CHECK(end.counters.points == 33078);
+  const auto stl = d.state / "exports/again.stl";
+  REQUIRE(c.request("mesh.export", proto::Object().set("path", stl.string())).cls ==
+          proto::MessageClass::kReply);
+  CHECK(test::slurp(stl) == test::slurp(live));
+  // The replayed scan was journalled again, record for record.
+  const acq::ScanRecord row = catalog_row(d.state, 1);
+  REQUIRE(row.segments.size() == 1);
+  CHECK(acq::check_journal(row.segments[0].path).samples == kSimRecords);
+  // A recording cannot be continued: an interrupted replay scan can only be closed.
+  CHECK(c.request("scan.start", proto::Object()
+                                    .set("name", "typo")
+                                    .set("parameters", Parameters{{"part", std::string("sphere")}}))
+            .error_code == "bad_argument");
 }
 
 TEST_CASE("socket activation: scanmeshd adopts the socket systemd-socket-activate passes",
@@ -354,8 +448,19 @@ TEST_CASE(
       *c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
   CHECK(before.state == "interrupted");
   CHECK(before.samples >= acknowledged);
-  CHECK(before.samples < kSimSamples);
+  CHECK(before.samples < kSimRecords);
   CHECK_THAT(d.log(), Catch::Contains("scan 1 'crash' was interrupted"));
+  // The catalog says so too, and the journal, recovered at startup, is a complete MCAP file
+  // holding every record acknowledged before the kill.
+  const acq::ScanRecord row = catalog_row(d.state, 1);
+  CHECK(row.state == acq::ScanState::kInterrupted);
+  REQUIRE(row.segments.size() == 1);
+  CHECK(row.segments[0].state == "recovered");
+  const acq::JournalReport recovered = acq::check_journal(row.segments[0].path);
+  CHECK(recovered.scan.summary_ok);
+  CHECK_FALSE(recovered.scan.torn_tail);
+  CHECK(recovered.samples >= acknowledged);
+  CHECK(recovered.samples == before.samples);
   CHECK(c.request("scan.close_interrupted", proto::Object().set("scan", 2)).error_code ==
         "not_found");
 
@@ -365,18 +470,87 @@ TEST_CASE(
   REQUIRE(resumed.cls == proto::MessageClass::kReply);
   const ScanStatus end = wait_scan_end(c, 1);
   CHECK(end.reason == "finished");
-  // Every sample exactly once: the first segment's and the new one's add up to the whole scan.
-  CHECK(end.counters.samples == kSimSamples);
+  // The simulated scanner continues with a new pass over the part, in a second segment whose
+  // clock starts after the first's: the scan holds both segments' records.
+  CHECK(end.counters.samples == before.samples + kSimRecords);
   const ScanRecord after = proto::scan_record_from(
       *c.request("scan.info", proto::Object().set("scan", 1)).body.get_object("scan"));
   CHECK(after.state == "finished");
-  CHECK(std::filesystem::exists(d.state / "scans/scan-1.2.stream"));
+  CHECK(after.samples == before.samples + kSimRecords);
+  const acq::ScanRecord row2 = catalog_row(d.state, 1);
+  REQUIRE(row2.segments.size() == 2);
+  CHECK(row2.segments[1].state == "closed");
+  CHECK(row2.segments[1].samples == kSimRecords);
+  CHECK(acq::check_journal(row2.segments[1].path).samples == kSimRecords);
   CHECK(c.request("scan.resume_interrupted", proto::Object().set("scan", 1)).error_code ==
         "bad_state");
+  // The scan's mesh is both segments replayed: the same as `scanmesh replay` of the two.
   const auto stl = d.state / "exports/crash.stl";
   REQUIRE(c.request("mesh.export", proto::Object().set("path", stl.string())).cls ==
           proto::MessageClass::kReply);
-  CHECK(recon::analyze(meshio::read_mesh(stl)).non_manifold_edges == 0);
+  const recon::MeshReport rep = recon::analyze(meshio::read_mesh(stl));
+  CHECK(rep.triangles > 20000);
+  CHECK(rep.non_manifold_edges == 0);
+  const auto replayed = d.dir / "replayed.stl";
+  const auto replay = test::run_program(
+      SCANMESH_EXE, d.dir,
+      {"replay", row2.segments[0].path, row2.segments[1].path, "-o", replayed.string()});
+  INFO(replay.out << replay.err);
+  REQUIRE(replay.status == 0);
+  CHECK(test::slurp(replayed) == test::slurp(stl));
+}
+
+TEST_CASE(
+    "the sensor lost mid-scan: the device shows lost, the scan pauses, resumes when it is back, "
+    "and no sample is lost",
+    "[e2e][faults]") {
+  Daemon d;
+  const auto cfg = d.dir / "loss.toml";
+  std::string text = test::slurp(kSimConfig);
+  text.replace(text.find("[sim]\n"), 6, "[sim]\nsensor_loss_at_s = 2\nsensor_loss_s = 1\n");
+  test::spit(cfg, text);
+  d.start_ready(cfg.string());
+  Client c = d.client();
+  c.request("watch");
+  REQUIRE(c.request("scan.start", proto::Object()
+                                      .set("name", "loss")
+                                      .set("parameters", Parameters{{"playback", std::int64_t{2}}}))
+              .cls == proto::MessageClass::kReply);
+  std::vector<std::string> seen;  // device and state changes, in order
+  ScanStatus end;
+  for (;;) {
+    auto m = c.read();
+    REQUIRE(m.has_value());
+    if (m->cls != proto::MessageClass::kEvent) continue;
+    if (m->event == "device") {
+      const DeviceInfo dev = proto::device_info_from(m->body);
+      if (seen.empty() || seen.back() != dev.name + " " + std::string(to_string(dev.state)))
+        seen.push_back(dev.name + " " + std::string(to_string(dev.state)));
+    } else if (m->event == "state") {
+      const ScanStatus s = proto::scan_status_from(m->body);
+      seen.push_back(std::string(to_string(s.state)) + (s.reason.empty() ? "" : " " + s.reason));
+      if (s.id == 1 && s.state == ScanState::kIdle) {
+        end = s;
+        break;
+      }
+    }
+  }
+  std::string order;
+  for (const auto& s : seen) order += s + "; ";
+  INFO(order);
+  const auto at = [&](const std::string& what) {
+    return std::find(seen.begin(), seen.end(), what) - seen.begin();
+  };
+  const auto n = static_cast<std::ptrdiff_t>(seen.size());
+  CHECK(at("sim-sensor lost") < n);
+  CHECK(at("paused device_lost: sim-sensor") < n);
+  CHECK(at("sim-sensor lost") < at("paused device_lost: sim-sensor"));
+  CHECK(at("paused device_lost: sim-sensor") < at("sim-sensor ok"));
+  CHECK(end.reason == "finished");
+  // Nothing was lost: the whole scan is in the journal.
+  CHECK(end.counters.samples == kSimRecords);
+  CHECK(end.counters.errors == 0);
+  CHECK_THAT(d.log(), Catch::Contains("device sim-sensor: lost"));
 }
 
 TEST_CASE("an interrupted scan can be closed instead", "[e2e][faults]") {
@@ -400,6 +574,8 @@ TEST_CASE("an interrupted scan can be closed instead", "[e2e][faults]") {
   const proto::Message closed = c.request("scan.close_interrupted", proto::Object().set("scan", 1));
   REQUIRE(closed.cls == proto::MessageClass::kReply);
   CHECK(proto::scan_record_from(*closed.body.get_object("scan")).state == "closed");
+  CHECK(catalog_row(d.state, 1).state == acq::ScanState::kStopped);
+  CHECK(catalog_row(d.state, 1).stop_reason == "closed after an interruption");
   // Its mesh is made from its journal on request.
   const auto stl = d.state / "exports/x.stl";
   CHECK(c.request("mesh.export", proto::Object().set("path", stl.string()).set("scan", 1)).cls ==
@@ -427,8 +603,8 @@ TEST_CASE("scanctl: text and --json output, a progress bar while waiting, exit c
   INFO(run.err);
   CHECK(run.status == 0);
   CHECK_THAT(run.out, Catch::Contains("scan 1 'cli' started"));
-  CHECK_THAT(run.out, Catch::Contains("scan 1 'cli': finished, 72,400 samples"));
-  CHECK_THAT(run.err, Catch::Contains("] 100%  samples 72,400"));  // the last progress line
+  CHECK_THAT(run.out, Catch::Contains("scan 1 'cli': finished, 72,776 samples"));
+  CHECK_THAT(run.err, Catch::Contains("] 100%  samples 72,776"));  // the last line
   CHECK_THAT(run.err, Catch::Contains("rate "));
   const auto list = scanctl({"scan", "list"});
   CHECK_THAT(list.out, Catch::Contains("cli"));

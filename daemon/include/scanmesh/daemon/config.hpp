@@ -23,21 +23,27 @@ enum class LogLevel : int { kError = 3, kWarning = 4, kNotice = 5, kInfo = 6, kD
 struct SimBackendConfig {
   std::string part = "container";   ///< built-in part (sim::part_names()); or:
   std::filesystem::path mesh;       ///< an STL/PLY/OBJ to scan instead (relative: to the file)
-  std::string sensor = "point";     ///< "point" or "line"
+  std::string sensor = "point";     ///< "point", "line" or "probe"
   std::string path = "serpentine";  ///< "raster", "serpentine", "rotary", "views"
   double spacing_mm = 0.5;          ///< along-line sample spacing, mm, (0, 50]
   double line_spacing_mm = 0;       ///< between lines, mm, >= 0 (0: the path's default)
   double speed_mm_s = 20;           ///< line speed, mm/s, (0, 5000]: rate = speed / spacing
   double noise_mm = 0.01;           ///< Gaussian range noise, mm, [0, 5]
   std::int64_t seed = 1;            ///< noise seed, >= 0
+  std::int64_t views = 4;           ///< table angles of the "views" path, 1..360
+  std::int64_t profile_points = 200;  ///< points per profile (line sensor), 1..65536
   /// Playback speed relative to the scan's own time, [0, 10000]: 1 live, 0 as fast as possible.
   double playback = 1;
+  /// A simulated fault: the sensor drops off this far into each scan (scan time, s; 0: never,
+  /// [0, 86400]) for `sensor_loss_s` (s, (0, 60], default 0.3), then comes back.
+  double sensor_loss_at_s = 0;
+  double sensor_loss_s = 0.3;
 };
 
-/// [replay]: a recorded sample stream played back as if live (backend = "replay").
+/// [replay]: a recorded scan journal played back as if live (backend = "replay").
 struct ReplayBackendConfig {
-  std::filesystem::path stream;  ///< sim stream file (relative: to the config file)
-  double playback = 1;           ///< as in [sim]
+  std::filesystem::path journal;  ///< MCAP scan journal (relative: to the config file)
+  double playback = 1;            ///< as in [sim]
 };
 
 /// One [[devices]] entry (backend = "devices"): a sensor configuration file (drivers/).
