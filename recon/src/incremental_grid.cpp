@@ -215,13 +215,27 @@ std::vector<std::uint32_t> CubeGrid::thinned_cubes_of(std::span<const std::uint3
   const double r2 = 0.65 * 0.65 * cube_ * cube_;
   std::vector<std::uint32_t> out;
   out.reserve(cand.size());
+  // A neighbour cube whose box lies 0.65 cube or more from the kept point cannot hold a
+  // clashing one: it is not looked up (a kept point near its cube's centre has only its six
+  // face neighbours within reach). The margin covers the rounding of the cube assignment.
+  const double skip2 = r2 * (1 + 1e-9);
   for (std::uint32_t c : cand) {
     const Cube& cc = cubes_[c];
+    const Vec3 r = cc.rep - centre(cc);
+    // Per axis and side (-1, 0, +1): the squared gap from the kept point to that slab.
+    double gap2[3][3];
+    for (int k = 0; k < 3; ++k) {
+      const double lo = std::max(0.0, 0.5 * cube_ + r[k]), hi = std::max(0.0, 0.5 * cube_ - r[k]);
+      gap2[k][0] = lo * lo;
+      gap2[k][1] = 0;
+      gap2[k][2] = hi * hi;
+    }
     bool clash = false;
     for (int dz = -1; dz <= 1 && !clash; ++dz)
       for (int dy = -1; dy <= 1 && !clash; ++dy)
         for (int dx = -1; dx <= 1 && !clash; ++dx) {
           if (dx == 0 && dy == 0 && dz == 0) continue;
+          if (gap2[0][dx + 1] + gap2[1][dy + 1] + gap2[2][dz + 1] >= skip2) continue;
           const std::uint32_t n = cube_table_.find(key(cc.x + dx, cc.y + dy, cc.z + dz));
           if (n == kNoId) continue;
           const bool other = in_job[cubes_[n].block] ? kept[n] != 0 : cubes_[n].vertex != kNoId;

@@ -70,9 +70,16 @@ void JobMesher::update_boundary(std::vector<std::uint32_t> vertices) {
     const std::uint32_t b = grid_.block_of(vertex_cube_[vertices[i]]);
     std::size_t j = i;
     while (j < vertices.size() && grid_.block_of(vertex_cube_[vertices[j]]) == b) ++j;
+    // The half-edges of the triangles around these vertices only: an out-edge's twin lies in
+    // a triangle of the same vertex, and every triangle of a vertex is listed under its block.
+    const auto first = vertices.begin() + static_cast<std::ptrdiff_t>(i);
+    const auto last = vertices.begin() + static_cast<std::ptrdiff_t>(j);
     half.clear();
     for (std::uint32_t id : live_triangles(b)) {
       const Triangle& t = mesh_.triangle(id);
+      if (!std::binary_search(first, last, t[0]) && !std::binary_search(first, last, t[1]) &&
+          !std::binary_search(first, last, t[2]))
+        continue;
       for (int k = 0; k < 3; ++k) half.emplace_back(t[k], t[(k + 1) % 3]);
     }
     std::sort(half.begin(), half.end());
@@ -92,8 +99,12 @@ std::vector<std::vector<std::uint32_t>> JobMesher::loops_through(
     std::span<const std::uint32_t> touched) const {
   std::vector<std::vector<std::uint32_t>> loops;
   std::vector<std::uint32_t> seen;  // loop starts (smallest ids) already given
+  // The vertices of the loops found (sorted): a touched vertex on one is not walked again
+  // (many touched vertices share a loop: walking each was O(touched x loop)).
+  std::vector<std::uint32_t> on_loop;
   for (const std::uint32_t t : touched) {
     if (boundary_next_.find(t) == kNoId) continue;
+    if (std::binary_search(on_loop.begin(), on_loop.end(), t)) continue;
     std::vector<std::uint32_t> loop{t};
     std::uint32_t v = boundary_next_.find(t);
     while (v != kNoId && v != t && loop.size() <= mesh_.vertex_count()) {
@@ -104,6 +115,10 @@ std::vector<std::vector<std::uint32_t>> JobMesher::loops_through(
     std::rotate(loop.begin(), std::min_element(loop.begin(), loop.end()), loop.end());
     if (std::find(seen.begin(), seen.end(), loop.front()) != seen.end()) continue;
     seen.push_back(loop.front());
+    const std::size_t mid = on_loop.size();
+    on_loop.insert(on_loop.end(), loop.begin(), loop.end());
+    std::sort(on_loop.begin() + static_cast<std::ptrdiff_t>(mid), on_loop.end());
+    std::inplace_merge(on_loop.begin(), on_loop.begin() + static_cast<std::ptrdiff_t>(mid), on_loop.end());
     loops.push_back(std::move(loop));
   }
   std::sort(loops.begin(), loops.end());
@@ -200,11 +215,25 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
   // any of them, and must see the whole fan to keep it one); then the vertices at the rim whose
   // triangles in the context form two sectors get theirs too.
   auto add_fans = [&](const std::vector<std::uint32_t>& vertices) {
-    for (std::uint32_t v : vertices)
-      for (std::uint32_t id : live_triangles(grid_.block_of(vertex_cube_[v]))) {
+    // By block: each block's triangle list is read once (not once a vertex).
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> by_block;  // (block, vertex)
+    by_block.reserve(vertices.size());
+    for (std::uint32_t v : vertices) by_block.emplace_back(grid_.block_of(vertex_cube_[v]), v);
+    std::sort(by_block.begin(), by_block.end());
+    for (std::size_t i = 0; i < by_block.size();) {
+      std::size_t j = i;
+      while (j < by_block.size() && by_block[j].first == by_block[i].first) ++j;
+      auto is_listed = [&](std::uint32_t v) {
+        return std::binary_search(by_block.begin() + static_cast<std::ptrdiff_t>(i),
+                                  by_block.begin() + static_cast<std::ptrdiff_t>(j),
+                                  std::make_pair(by_block[i].first, v));
+      };
+      for (std::uint32_t id : live_triangles(by_block[i].first)) {
         const Triangle& t = mesh_.triangle(id);
-        if (t[0] == v || t[1] == v || t[2] == v) context.push_back(id);
+        if (is_listed(t[0]) || is_listed(t[1]) || is_listed(t[2])) context.push_back(id);
       }
+      i = j;
+    }
     std::sort(context.begin(), context.end());
     context.erase(std::unique(context.begin(), context.end()), context.end());
   };
