@@ -263,6 +263,20 @@ std::vector<std::uint32_t> CubeGrid::neighbour_blocks(std::uint32_t block) const
   return out;
 }
 
+bool CubeGrid::near_blocks(std::uint32_t c, std::span<const std::uint32_t> job, int cubes) const {
+  const Cube& cc = cubes_[c];
+  for (std::uint32_t j : job) {
+    const Block& b = blocks_[j];
+    const std::int64_t lo[3] = {std::int64_t{b.x} * block_cubes_, std::int64_t{b.y} * block_cubes_,
+                                std::int64_t{b.z} * block_cubes_};
+    const std::int64_t at[3] = {cc.x, cc.y, cc.z};
+    bool in = true;
+    for (int k = 0; k < 3 && in; ++k) in = at[k] >= lo[k] - cubes && at[k] < lo[k] + block_cubes_ + cubes;
+    if (in) return true;
+  }
+  return false;
+}
+
 std::vector<std::uint32_t> CubeGrid::cubes_near(std::span<const std::uint32_t> job,
                                                 std::span<const std::uint32_t> ring,
                                                 int cubes) const {

@@ -80,6 +80,7 @@ class CubeGrid {
   /// Fixes the cube size and the grid origin (the cube holding `first` has coordinates 0).
   void start(const Vec3& first, double cube, int block_cubes);
   [[nodiscard]] double cube() const { return cube_; }
+  [[nodiscard]] int block_cubes() const { return block_cubes_; }
 
   /// Takes one point (index: its position in the sequence). A point in a new cube of a meshed
   /// block re-opens the block; one in a kept cube only updates the cube's moments, and its kept
@@ -116,6 +117,8 @@ class CubeGrid {
     return blocks_[block].cubes;
   }
   [[nodiscard]] std::uint32_t block_of(std::uint32_t c) const { return cubes_[c].block; }
+  /// Whether cube c lies within `cubes` cubes of one of the blocks `job` (per axis).
+  [[nodiscard]] bool near_blocks(std::uint32_t c, std::span<const std::uint32_t> job, int cubes) const;
   [[nodiscard]] std::size_t block_count() const { return blocks_.size(); }
   [[nodiscard]] BlockState state(std::uint32_t block) const { return blocks_[block].state; }
   /// The cubes of the blocks `ring` within `cubes` cubes of a block of `job` (both ascending).

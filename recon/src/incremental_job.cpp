@@ -17,6 +17,14 @@ namespace scanmesh::recon::detail {
 
 namespace {
 
+/// The context of a job: the published triangles with a vertex within a band of the job's
+/// blocks, then the whole fans of their vertices. The band is twice the longest published edge
+/// plus kContextSlackCubes wide (a new triangle reaches about one edge out of the job, a
+/// published one that could cross it has a corner within one edge of that), at least
+/// kContextMinCubes, at most one block (then it is the whole neighbour blocks).
+constexpr int kContextMinCubes = 4;
+constexpr int kContextSlackCubes = 2;
+
 /// The rotation of t that starts at its smallest vertex (orientation kept).
 Triangle canonical(const Triangle& t) {
   const int k = t[0] < t[1] ? (t[0] < t[2] ? 0 : 2) : (t[1] < t[2] ? 1 : 2);
@@ -39,6 +47,8 @@ std::uint32_t JobMesher::publish_vertex(std::uint32_t cube, const Vec3& p,
 std::uint32_t JobMesher::publish_triangle(const Triangle& t) {
   const std::uint32_t id = mesh_.add_triangle(t);
   if (block_tris_.size() < grid_.block_count()) block_tris_.resize(grid_.block_count());
+  for (int k = 0; k < 3; ++k)
+    max_edge2_ = std::max(max_edge2_, (mesh_.vertex(t[k]) - mesh_.vertex(t[(k + 1) % 3])).squaredNorm());
   std::uint32_t seen[3];
   int n = 0;
   for (std::uint32_t v : t) {
@@ -201,14 +211,25 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
   }
   std::sort(zone.begin(), zone.end());
   zone.erase(std::unique(zone.begin(), zone.end()), zone.end());
-  std::vector<std::uint8_t> in_job(grid_.block_count(), 0), in_zone(grid_.block_count(), 0);
+  std::vector<std::uint8_t> in_job(grid_.block_count(), 0);
   for (std::uint32_t b : job) in_job[b] = 1;
-  for (std::uint32_t b : zone) in_zone[b] = 1;
+  // The context proper: the live triangles with a vertex within kContextCubes cubes of the
+  // job's blocks (a band wider than the front's reach, not the whole neighbour blocks).
+  const int band = std::clamp(
+      static_cast<int>(std::ceil(2 * std::sqrt(max_edge2_) / grid_.cube())) + kContextSlackCubes,
+      kContextMinCubes, grid_.block_cubes());
+  std::vector<std::uint8_t> near;  // per vertex id: 0 unknown, 1 near, 2 not
+  near.assign(vertex_cube_.size(), 0);
+  auto is_near = [&](std::uint32_t v) {
+    if (near[v] == 0) near[v] = grid_.near_blocks(vertex_cube_[v], job, band) ? 1 : 2;
+    return near[v] == 1;
+  };
   std::vector<std::uint32_t> context;
-  for (std::uint32_t b : zone) {
-    const std::vector<std::uint32_t>& l = live_triangles(b);
-    context.insert(context.end(), l.begin(), l.end());
-  }
+  for (std::uint32_t b : zone)
+    for (std::uint32_t id : live_triangles(b)) {
+      const Triangle& t = mesh_.triangle(id);
+      if (is_near(t[0]) || is_near(t[1]) || is_near(t[2])) context.push_back(id);
+    }
   std::sort(context.begin(), context.end());
   context.erase(std::unique(context.begin(), context.end()), context.end());
   // Every vertex of those triangles gets its whole fan (the repairs may remove triangles around
@@ -241,7 +262,7 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
     std::vector<std::uint32_t> outside;
     for (std::uint32_t id : context)
       for (std::uint32_t v : mesh_.triangle(id))
-        if (!in_zone[grid_.block_of(vertex_cube_[v])]) outside.push_back(v);
+        if (!is_near(v)) outside.push_back(v);
     std::sort(outside.begin(), outside.end());
     outside.erase(std::unique(outside.begin(), outside.end()), outside.end());
     add_fans(outside);

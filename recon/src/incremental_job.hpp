@@ -69,6 +69,7 @@ class JobMesher {
   std::vector<std::vector<std::uint32_t>> block_tris_;
   /// Per boundary vertex: the next vertex along its loop (kNoId once it is not on one).
   KeyTable boundary_next_;
+  double max_edge2_ = 0;  // the longest published edge so far, squared (the context's band)
   JobStats stats_;
 };
 
