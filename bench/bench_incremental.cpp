@@ -64,13 +64,14 @@ struct Row {
 
 /// Feeds `lines` of `per_line` points and measures; `consume` takes a delta after every batch.
 template <class Source>
-Row run(const std::string& name, std::size_t batches, Source&& next_batch) {
+Row run(const std::string& name, const recon::IncrementalOptions& options, std::size_t batches,
+        Source&& next_batch) {
   Row row;
   row.name = name;
   const std::size_t heap0 = heap_in_use();
   const std::clock_t cpu0 = std::clock();
   const auto start = Clock::now();
-  recon::IncrementalReconstructor rec({}, [start] { return seconds_since(start); });
+  recon::IncrementalReconstructor rec(options, [start] { return seconds_since(start); });
   std::vector<Vec3> pts, dirs;
   double delta_seconds = 0, delta_cpu = 0;
   std::size_t delta_triangles = 0;
@@ -142,7 +143,15 @@ void print(const Row& r, double cpu_ns_at_100k) {
 
 int main(int argc, char** argv) {
   std::vector<std::size_t> sizes;
-  for (int i = 1; i < argc; ++i) sizes.push_back(std::strtoull(argv[i], nullptr, 10));
+  // [--blocks-per-step N] [SIZE...]: the option trades the largest batch against the cost per point.
+  recon::IncrementalOptions options;
+  for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--blocks-per-step" && i + 1 < argc) {
+      options.max_blocks_per_step = std::strtoull(argv[++i], nullptr, 10);
+      continue;
+    }
+    sizes.push_back(std::strtoull(argv[i], nullptr, 10));
+  }
   if (sizes.empty()) sizes = {100000, 1000000, 10000000};
   std::printf("bench_incremental (%s build): serpentine raster, 2,000 points a line = one batch, "
               "noise 0.005, one thread\n",
@@ -164,7 +173,7 @@ int main(int argc, char** argv) {
     constexpr std::size_t kPerLine = 2000;
     const std::size_t lines = std::max<std::size_t>(1, n / kPerLine);
     std::mt19937 rng(57);
-    const Row r = run("raster " + std::to_string(n), lines,
+    const Row r = run("raster " + std::to_string(n), options, lines,
                       [&](std::size_t b, std::vector<Vec3>& pts, std::vector<Vec3>& dirs) {
                         scan_line(b, kPerLine, rng, pts);
                         dirs.clear();
@@ -185,7 +194,7 @@ int main(int argc, char** argv) {
       }
     }
     constexpr std::size_t kBatch = 4096;
-    const Row r = run("bunny 10 scans", (all.size() + kBatch - 1) / kBatch,
+    const Row r = run("bunny 10 scans", options, (all.size() + kBatch - 1) / kBatch,
                       [&](std::size_t b, std::vector<Vec3>& pts, std::vector<Vec3>& dirs) {
                         const std::size_t i = b * kBatch, m = std::min(kBatch, all.size() - i);
                         pts.assign(all.begin() + static_cast<std::ptrdiff_t>(i),
