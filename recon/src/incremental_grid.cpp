@@ -56,7 +56,7 @@ InsertOutcome CubeGrid::insert(const Vec3& p, const Vec3* towards, std::size_t i
                u.z() - static_cast<double>(cz) - 0.5);
   const auto d2 = static_cast<float>(d.squaredNorm());
   const std::uint64_t k = key(cx, cy, cz);
-  std::uint32_t c = cube_table_.find(k);
+  std::uint32_t c = find_cube(k);
   InsertOutcome out = InsertOutcome::kExistingCube;
   if (c == kNoId) {
     const std::int64_t bx = floor_div(cx, block_cubes_), by = floor_div(cy, block_cubes_),
@@ -82,7 +82,7 @@ InsertOutcome CubeGrid::insert(const Vec3& p, const Vec3* towards, std::size_t i
     nc.z = static_cast<std::int32_t>(cz);
     if (towards != nullptr) nc.towards = towards->cast<float>();
     cubes_.push_back(nc);
-    cube_table_.insert(k, c);
+    cube_table_.insert(k, c, [this](std::uint32_t o) { return cube_key(o); });
     Block& blk = blocks_[b];
     blk.cubes.push_back(c);
     out = InsertOutcome::kNewCube;
@@ -236,7 +236,7 @@ std::vector<std::uint32_t> CubeGrid::thinned_cubes_of(std::span<const std::uint3
         for (int dx = -1; dx <= 1 && !clash; ++dx) {
           if (dx == 0 && dy == 0 && dz == 0) continue;
           if (gap2[0][dx + 1] + gap2[1][dy + 1] + gap2[2][dz + 1] >= skip2) continue;
-          const std::uint32_t n = cube_table_.find(key(cc.x + dx, cc.y + dy, cc.z + dz));
+          const std::uint32_t n = find_cube(key(cc.x + dx, cc.y + dy, cc.z + dz));
           if (n == kNoId) continue;
           const bool other = in_job[cubes_[n].block] ? kept[n] != 0 : cubes_[n].vertex != kNoId;
           clash = other && (cubes_[n].rep - cc.rep).squaredNorm() < r2;
@@ -311,7 +311,7 @@ Vec3 CubeGrid::projected(std::uint32_t c) const {
   for (int dz = -1; dz <= 1; ++dz)
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx) {
-        const std::uint32_t q = cube_table_.find(key(cc.x + dx, cc.y + dy, cc.z + dz));
+        const std::uint32_t q = find_cube(key(cc.x + dx, cc.y + dy, cc.z + dz));
         if (q == kNoId) continue;
         const Cube& cq = cubes_[q];
         const double m = cq.count;
@@ -347,7 +347,7 @@ BlockCounts CubeGrid::block_counts() const {
 }
 
 std::size_t CubeGrid::heap_bytes() const {
-  std::size_t n = cubes_.capacity() * sizeof(Cube) + blocks_.capacity() * sizeof(Block) +
+  std::size_t n = cubes_.heap_bytes() + blocks_.capacity() * sizeof(Block) +
                   cube_table_.heap_bytes() + block_table_.heap_bytes();
   for (const Block& b : blocks_) n += b.cubes.capacity() * 4;
   return n;

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "scanmesh/recon/incremental.hpp"
+#include "chunked.hpp"
 #include "incremental_store.hpp"
 
 namespace scanmesh::recon::detail {
@@ -70,6 +72,52 @@ class KeyTable {
   void grow();
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> values_;
+  std::size_t size_ = 0, mask_ = 0;
+  int shift_ = 64;
+};
+
+/// Open-addressing index of the cubes by their packed coordinates: the slots hold cube
+/// numbers only (the keys are computed from the cube records), linear probing, load at most
+/// 1/2: 4 bytes a slot instead of KeyTable's 12. Look-ups only: its order never reaches an
+/// output.
+class CubeIndex {
+ public:
+  /// `key_of(c)` gives cube c's key.
+  template <class KeyOf>
+  [[nodiscard]] std::uint32_t find(std::uint64_t key, KeyOf&& key_of) const {
+    if (slots_.empty()) return kNoId;
+    for (std::size_t h = slot(key);; h = (h + 1) & mask_) {
+      const std::uint32_t c = slots_[h];
+      if (c == kNoId) return kNoId;
+      if (key_of(c) == key) return c;
+    }
+  }
+  /// Adds cube c (its key not present yet).
+  template <class KeyOf>
+  void insert(std::uint64_t key, std::uint32_t c, KeyOf&& key_of) {
+    if ((size_ + 1) * 2 > slots_.size()) {
+      std::vector<std::uint32_t> old(slots_.empty() ? 64 : slots_.size() * 2, kNoId);
+      old.swap(slots_);
+      mask_ = slots_.size() - 1;
+      shift_ = 64 - std::countr_zero(slots_.size());
+      for (std::uint32_t o : old)
+        if (o != kNoId) place(key_of(o), o);
+    }
+    place(key, c);
+    ++size_;
+  }
+  [[nodiscard]] std::size_t heap_bytes() const { return slots_.capacity() * 4; }
+
+ private:
+  [[nodiscard]] std::size_t slot(std::uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+  void place(std::uint64_t key, std::uint32_t c) {
+    std::size_t h = slot(key);
+    while (slots_[h] != kNoId) h = (h + 1) & mask_;
+    slots_[h] = c;
+  }
+  std::vector<std::uint32_t> slots_;
   std::size_t size_ = 0, mask_ = 0;
   int shift_ = 64;
 };
@@ -167,8 +215,15 @@ class CubeGrid {
   double cube_ = 0, inv_cube_ = 0;
   int block_cubes_ = 16;
   Vec3 origin_ = Vec3::Zero();  // corner of cube (0, 0, 0)
-  std::vector<Cube> cubes_;
-  KeyTable cube_table_;
+  Chunked<Cube, 10> cubes_;  // no doubling slack: the largest record of the path
+  CubeIndex cube_table_;
+  [[nodiscard]] std::uint32_t find_cube(std::uint64_t k) const {
+    return cube_table_.find(k, [this](std::uint32_t c) { return cube_key(c); });
+  }
+  [[nodiscard]] std::uint64_t cube_key(std::uint32_t c) const {
+    const Cube& cc = cubes_[c];
+    return key(cc.x, cc.y, cc.z);
+  }
   std::vector<Block> blocks_;
   KeyTable block_table_;
   std::vector<std::uint32_t> unmeshed_;  // blocks not meshed (meshed ones dropped lazily)

@@ -213,16 +213,18 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
   zone.erase(std::unique(zone.begin(), zone.end()), zone.end());
   std::vector<std::uint8_t> in_job(grid_.block_count(), 0);
   for (std::uint32_t b : job) in_job[b] = 1;
-  // The context proper: the live triangles with a vertex within kContextCubes cubes of the
-  // job's blocks (a band wider than the front's reach, not the whole neighbour blocks).
+  // The context proper: the live triangles with a vertex within the band around the job's
+  // blocks (see kContextMinCubes), not the whole neighbour blocks.
   const int band = std::clamp(
       static_cast<int>(std::ceil(2 * std::sqrt(max_edge2_) / grid_.cube())) + kContextSlackCubes,
       kContextMinCubes, grid_.block_cubes());
-  std::vector<std::uint8_t> near;  // per vertex id: 0 unknown, 1 near, 2 not
-  near.assign(vertex_cube_.size(), 0);
+  near_.resize(vertex_cube_.size(), 0);
   auto is_near = [&](std::uint32_t v) {
-    if (near[v] == 0) near[v] = grid_.near_blocks(vertex_cube_[v], job, band) ? 1 : 2;
-    return near[v] == 1;
+    if (near_[v] == 0) {
+      near_[v] = grid_.near_blocks(vertex_cube_[v], job, band) ? 1 : 2;
+      near_set_.push_back(v);
+    }
+    return near_[v] == 1;
   };
   std::vector<std::uint32_t> context;
   for (std::uint32_t b : zone)
@@ -293,6 +295,8 @@ void JobMesher::run(std::span<const std::uint32_t> job) {
     add_fans(split);
     if (context.size() == before) break;
   }
+  for (std::uint32_t v : near_set_) near_[v] = 0;
+  near_set_.clear();
   stats_.context_triangles += context.size();
 
   // The job's points: the context's vertices (ascending id), then the job's kept points after
@@ -493,8 +497,8 @@ void JobMesher::close() {
 }
 
 std::size_t JobMesher::heap_bytes() const {
-  std::size_t b = vertex_cube_.capacity() * 4 + vertex_normal_.capacity() * 12 +
-                  vertex_spacing_.capacity() * 4 + vertex_uses_.capacity() * 4 +
+  std::size_t b = vertex_cube_.heap_bytes() + vertex_normal_.heap_bytes() + vertex_spacing_.heap_bytes() +
+                  vertex_uses_.heap_bytes() + near_.capacity() + near_set_.capacity() * 4 +
                   block_tris_.capacity() * sizeof(std::vector<std::uint32_t>);
   for (const auto& l : block_tris_) b += l.capacity() * 4;
   return b;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "scanmesh/recon/reconstruct.hpp"
+#include "chunked.hpp"
 #include "incremental_grid.hpp"
 #include "incremental_store.hpp"
 
@@ -61,10 +62,14 @@ class JobMesher {
   CubeGrid& grid_;
   PublishedMesh& mesh_;
   // Per published vertex.
-  std::vector<std::uint32_t> vertex_cube_;
-  std::vector<Eigen::Vector3f> vertex_normal_;
-  std::vector<float> vertex_spacing_;
-  std::vector<std::uint32_t> vertex_uses_;  // live triangles using it
+  Chunked<std::uint32_t> vertex_cube_;
+  Chunked<Eigen::Vector3f> vertex_normal_;
+  Chunked<float> vertex_spacing_;
+  Chunked<std::uint32_t> vertex_uses_;  // live triangles using it
+  /// run()'s scratch, per vertex id: 0 not looked at, 1 within the context's band, 2 not;
+  /// all zero between jobs (the entries set are listed in near_set_ and cleared).
+  std::vector<std::uint8_t> near_;
+  std::vector<std::uint32_t> near_set_;
   // Per block: the published triangles with a vertex in it (dead ones dropped lazily).
   std::vector<std::vector<std::uint32_t>> block_tris_;
   /// Per boundary vertex: the next vertex along its loop (kNoId once it is not on one).
