@@ -76,48 +76,54 @@ class KeyTable {
   int shift_ = 64;
 };
 
-/// Open-addressing index of the cubes by their packed coordinates: the slots hold cube
-/// numbers only (the keys are computed from the cube records), linear probing, load at most
-/// 1/2: 4 bytes a slot instead of KeyTable's 12. Look-ups only: its order never reaches an
-/// output.
+/// Open-addressing index of the cubes by their packed coordinates: a slot holds the cube
+/// number and a 32-bit fingerprint of its key (8 bytes; the key itself is computed from the
+/// cube record, read only when the fingerprint matches), linear probing, load at most 1/2.
+/// Look-ups only: its order never reaches an output.
 class CubeIndex {
  public:
   /// `key_of(c)` gives cube c's key.
   template <class KeyOf>
   [[nodiscard]] std::uint32_t find(std::uint64_t key, KeyOf&& key_of) const {
     if (slots_.empty()) return kNoId;
+    const std::uint32_t fp = fingerprint(key);
     for (std::size_t h = slot(key);; h = (h + 1) & mask_) {
-      const std::uint32_t c = slots_[h];
-      if (c == kNoId) return kNoId;
-      if (key_of(c) == key) return c;
+      const std::uint64_t e = slots_[h];
+      if (e == kEmpty) return kNoId;
+      const auto c = static_cast<std::uint32_t>(e);
+      if (static_cast<std::uint32_t>(e >> 32) == fp && key_of(c) == key) return c;
     }
   }
   /// Adds cube c (its key not present yet).
   template <class KeyOf>
   void insert(std::uint64_t key, std::uint32_t c, KeyOf&& key_of) {
     if ((size_ + 1) * 2 > slots_.size()) {
-      std::vector<std::uint32_t> old(slots_.empty() ? 64 : slots_.size() * 2, kNoId);
+      std::vector<std::uint64_t> old(slots_.empty() ? 64 : slots_.size() * 2, kEmpty);
       old.swap(slots_);
       mask_ = slots_.size() - 1;
       shift_ = 64 - std::countr_zero(slots_.size());
-      for (std::uint32_t o : old)
-        if (o != kNoId) place(key_of(o), o);
+      for (std::uint64_t e : old)
+        if (e != kEmpty) place(key_of(static_cast<std::uint32_t>(e)), static_cast<std::uint32_t>(e));
     }
     place(key, c);
     ++size_;
   }
-  [[nodiscard]] std::size_t heap_bytes() const { return slots_.capacity() * 4; }
+  [[nodiscard]] std::size_t heap_bytes() const { return slots_.capacity() * 8; }
 
  private:
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t{0};
   [[nodiscard]] std::size_t slot(std::uint64_t key) const {
     return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
   }
+  static std::uint32_t fingerprint(std::uint64_t key) {
+    return static_cast<std::uint32_t>(((key ^ (key >> 29)) * 0xBF58476D1CE4E5B9ull) >> 32);
+  }
   void place(std::uint64_t key, std::uint32_t c) {
     std::size_t h = slot(key);
-    while (slots_[h] != kNoId) h = (h + 1) & mask_;
-    slots_[h] = c;
+    while (slots_[h] != kEmpty) h = (h + 1) & mask_;
+    slots_[h] = (std::uint64_t{fingerprint(key)} << 32) | c;
   }
-  std::vector<std::uint32_t> slots_;
+  std::vector<std::uint64_t> slots_;
   std::size_t size_ = 0, mask_ = 0;
   int shift_ = 64;
 };

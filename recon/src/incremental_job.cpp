@@ -82,16 +82,15 @@ void JobMesher::update_boundary(std::vector<std::uint32_t> vertices) {
     while (j < vertices.size() && grid_.block_of(vertex_cube_[vertices[j]]) == b) ++j;
     // The half-edges of the triangles around these vertices only: an out-edge's twin lies in
     // a triangle of the same vertex, and every triangle of a vertex is listed under its block.
-    const auto first = vertices.begin() + static_cast<std::ptrdiff_t>(i);
-    const auto last = vertices.begin() + static_cast<std::ptrdiff_t>(j);
+    near_.resize(vertex_cube_.size(), 0);  // scratch: marks this block's vertices
+    for (std::size_t k = i; k < j; ++k) near_[vertices[k]] = 1;
     half.clear();
     for (std::uint32_t id : live_triangles(b)) {
       const Triangle& t = mesh_.triangle(id);
-      if (!std::binary_search(first, last, t[0]) && !std::binary_search(first, last, t[1]) &&
-          !std::binary_search(first, last, t[2]))
-        continue;
+      if ((near_[t[0]] | near_[t[1]] | near_[t[2]]) == 0) continue;
       for (int k = 0; k < 3; ++k) half.emplace_back(t[k], t[(k + 1) % 3]);
     }
+    for (std::size_t k = i; k < j; ++k) near_[vertices[k]] = 0;
     std::sort(half.begin(), half.end());
     for (std::size_t k = i; k < j; ++k) {
       const std::uint32_t v = vertices[k];

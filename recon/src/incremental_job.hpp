@@ -66,8 +66,9 @@ class JobMesher {
   Chunked<Eigen::Vector3f> vertex_normal_;
   Chunked<float> vertex_spacing_;
   Chunked<std::uint32_t> vertex_uses_;  // live triangles using it
-  /// run()'s scratch, per vertex id: 0 not looked at, 1 within the context's band, 2 not;
-  /// all zero between jobs (the entries set are listed in near_set_ and cleared).
+  /// Scratch per vertex id (run(): 0 not looked at, 1 within the context's band, 2 not;
+  /// update_boundary(): 1 a vertex of the block at hand),
+  /// all zero between calls (run() lists the entries it set in near_set_).
   std::vector<std::uint8_t> near_;
   std::vector<std::uint32_t> near_set_;
   // Per block: the published triangles with a vertex in it (dead ones dropped lazily).
