@@ -69,17 +69,20 @@ const std::vector<std::uint32_t>& JobMesher::live_triangles(std::uint32_t b) {
 }
 
 void JobMesher::update_boundary(std::vector<std::uint32_t> vertices) {
-  // By block: each block's triangle list is read once.
-  std::sort(vertices.begin(), vertices.end(), [&](std::uint32_t a, std::uint32_t b) {
-    const std::uint32_t ba = grid_.block_of(vertex_cube_[a]), bb = grid_.block_of(vertex_cube_[b]);
-    return ba != bb ? ba < bb : a < b;
-  });
+  // By block: each block's triangle list is read once. (The ids come with many repeats: a
+  // plain sort drops them before each vertex's block is looked up, once.)
+  std::sort(vertices.begin(), vertices.end());
   vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> by_block;  // (block, vertex)
+  by_block.reserve(vertices.size());
+  for (std::uint32_t v : vertices) by_block.emplace_back(grid_.block_of(vertex_cube_[v]), v);
+  std::sort(by_block.begin(), by_block.end());
+  for (std::size_t k = 0; k < by_block.size(); ++k) vertices[k] = by_block[k].second;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> half;
   for (std::size_t i = 0; i < vertices.size();) {
-    const std::uint32_t b = grid_.block_of(vertex_cube_[vertices[i]]);
+    const std::uint32_t b = by_block[i].first;
     std::size_t j = i;
-    while (j < vertices.size() && grid_.block_of(vertex_cube_[vertices[j]]) == b) ++j;
+    while (j < vertices.size() && by_block[j].first == b) ++j;
     // The half-edges of the triangles around these vertices only: an out-edge's twin lies in
     // a triangle of the same vertex, and every triangle of a vertex is listed under its block.
     near_.resize(vertex_cube_.size(), 0);  // scratch: marks this block's vertices
