@@ -106,8 +106,18 @@ FrontResult Builder::run() {
       if (state_[i] == VertexState::kFree) tmp.push_back(i);
     order.resize(tmp.size());
     auto key = [&](std::uint32_t i) { return std::bit_cast<std::uint32_t>(f_.flatness[i] + 0.0f); };
-    std::vector<std::uint32_t> count(1u << 16);
-    for (int shift = 0; shift < 32; shift += 16) {
+    if (tmp.size() < 8192) {
+      // Few points (the incremental path's jobs): a comparison sort by (key, index), the same
+      // order, without clearing the radix sort's 256 KB of counters twice.
+      order.swap(tmp);
+      std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+        const std::uint32_t ka = key(a), kb = key(b);
+        return ka != kb ? ka < kb : a < b;
+      });
+      tmp.clear();
+    }
+    std::vector<std::uint32_t> count(tmp.empty() ? 0 : 1u << 16);
+    for (int shift = 0; shift < 32 && !tmp.empty(); shift += 16) {
       std::fill(count.begin(), count.end(), 0u);
       for (std::uint32_t i : tmp) ++count[(key(i) >> shift) & 0xffffu];
       std::uint32_t sum = 0;
