@@ -95,21 +95,22 @@ Deviation in_process_deviation(const recon::Mesh& part, const sim::ScanSettings&
   return vertex_deviation(pipeline.result(), part);
 }
 
-/// The tolerance the emulated scans are held to: within 0.03 mm of the in-process simulation's
-/// median vertex distance to the part, and 0.1 mm of its 90th percentile (the 2 mm cubes'
-/// representatives lie up to 0.2 mm inside the sphere either way). Not every vertex: the sensor's
-/// samples and GRBL's status reports are stamped by their drivers on receipt (GRBL has no
-/// timestamps), and a host that reads one late (a loaded machine: CI shares two cores with other
-/// builds) shifts that pose by the delay times the speed (10 ms at 100 mm/s is 1 mm).
-/// acquisition/NOTEBOOK.md has the figures.
+/// The tolerance the emulated scans are held to: the median vertex distance to the part within
+/// 0.08 mm of the in-process simulation's (the 2 mm cubes' representatives lie about 0.16 mm
+/// inside the sphere either way), the 90th percentile below 1 mm (a wrong mounting, axis or
+/// clock join is millimetres off everywhere). Not tighter: the sensor's samples and GRBL's status
+/// reports are stamped by their drivers on receipt (GRBL has no timestamps), and a host that
+/// reads one late shifts that pose by the delay times the speed (10 ms at 100 mm/s is 1 mm). On
+/// an idle machine the 90th percentile is 0.19 mm, as in process; with other builds on both
+/// cores 0.2 to 0.8 mm (acquisition/NOTEBOOK.md).
 void check_on_part(const recon::Mesh& mesh, const recon::Mesh& part, const Deviation& reference) {
   const Deviation dev = vertex_deviation(mesh, part);
   INFO("vertex distance to the part: median " << dev.median << " mm, 90th percentile " << dev.p90
                                               << " mm, 99th " << dev.p99 << " mm, worst "
                                               << dev.worst << " mm; in process: median "
                                               << reference.median << ", 90th " << reference.p90);
-  CHECK(dev.median < reference.median + 0.03);
-  CHECK(dev.p90 < reference.p90 + 0.1);
+  CHECK(dev.median < reference.median + 0.08);
+  CHECK(dev.p90 < 1.0);
 }
 
 std::unique_ptr<acq::Pipeline> make_pipeline(acq::ScanBackend& backend,

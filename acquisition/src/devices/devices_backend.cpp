@@ -107,6 +107,7 @@ void DevicesBackend::start(SampleInput& input) {
     pause_requested_ = false;
   }
   forwarding_ = false;
+  motion_done_ = false;
   sensor_->open();  // throws DeviceError naming the device
   try {
     stage_->open();
@@ -167,7 +168,7 @@ void DevicesBackend::stop() noexcept {
   forwarding_ = false;
   if (!running_.exchange(false)) return;
   try {
-    if (stage_->state() == drivers::DeviceState::kAcquiring) stage_->halt();
+    if (!motion_done_ && stage_->state() == drivers::DeviceState::kAcquiring) stage_->halt();
   } catch (...) {  // a lost stage cannot be halted; stop() never throws
   }
   sensor_->stop();
@@ -260,6 +261,7 @@ void DevicesBackend::run(std::stop_token stop, SampleInput& input) {
       ++k;
     }
     forwarding_ = false;
+    motion_done_ = true;
     input.on_end();
   } catch (const std::exception& e) {
     forwarding_ = false;

@@ -79,6 +79,7 @@ class DevicesBackend final : public ScanBackend {
   std::string sensor_reason_, stage_reason_;
   std::atomic<bool> forwarding_{false};  // sensor samples go to the pipeline
   std::atomic<bool> running_{false};
+  std::atomic<bool> motion_done_{false};  // the program ran to its end: nothing to halt
   std::atomic<std::uint64_t> moves_done_{0}, halts_{0};
   std::jthread program_thread_;
 };
