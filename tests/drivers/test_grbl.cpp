@@ -159,7 +159,7 @@ struct GrblBench {
   scanmesh::test::StageCollector collector;
 
   explicit GrblBench(scanmesh::sim::GrblEmulatorOptions emu = {}, grbl::Options options = {},
-                     std::chrono::milliseconds timeout = 150ms)
+                     std::chrono::milliseconds timeout = 400ms)
       : emulator((dir / "grbl").string(), std::move(emu)),
         device(scanmesh::test::fast_stage_options("grbl0", timeout),
                scanmesh::test::pty_serial_factory("grbl0", (dir / "grbl").string(), 115200),
@@ -356,7 +356,7 @@ TEST_CASE("grbl driver: faults, loss and reconnect", "[drivers][grbl]") {
     b.emulator.set_faults({.silent = true});
     REQUIRE(scanmesh::test::wait_until([&] { return b.device.state() == drv::DeviceState::kLost; }));
     CHECK(b.collector.saw(drv::DeviceState::kLost, "grbl0"));
-    CHECK(b.collector.saw(drv::DeviceState::kLost, "no status report within 150 ms, 3 times"));
+    CHECK(b.collector.saw(drv::DeviceState::kLost, "no status report within 400 ms, 3 times"));
     CHECK(b.device.status().status == StageStatus::kLost);
     CHECK_THROWS_AS(b.device.move_to({1.0, {}, {}, {}}, 100), drv::DeviceError);
     b.emulator.set_faults({});
