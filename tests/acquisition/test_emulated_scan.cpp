@@ -105,22 +105,22 @@ Deviation in_process_deviation(const recon::Mesh& part, const sim::ScanSettings&
 /// cores 0.2 to 0.8 mm (acquisition/NOTEBOOK.md).
 void check_on_part(const recon::Mesh& mesh, const recon::Mesh& part, const Deviation& reference) {
   const Deviation dev = vertex_deviation(mesh, part);
-  INFO("vertex distance to the part: median " << dev.median << " mm, 90th percentile " << dev.p90
-                                              << " mm, 99th " << dev.p99 << " mm, worst "
-                                              << dev.worst << " mm; in process: median "
-                                              << reference.median << ", 90th " << reference.p90);
+  INFO("vertex distance to the part: median "
+       << dev.median << " mm, 90th percentile " << dev.p90 << " mm, 99th " << dev.p99
+       << " mm, worst " << dev.worst << " mm; in process: median " << reference.median << ", 90th "
+       << reference.p90);
   CHECK(dev.median < reference.median + 0.08);
   CHECK(dev.p90 < 1.0);
 }
 
 std::unique_ptr<acq::Pipeline> make_pipeline(acq::ScanBackend& backend,
-                                             const std::filesystem::path& journal,
-                                             Events& events) {
+                                             const std::filesystem::path& journal, Events& events) {
   const nlohmann::json meshing{{"mesher", "incremental"}, {"cube", "2"}};
   acq::PipelineConfig pc;
-  pc.parameters_json =
-      nlohmann::json{{"kind", "scan"}, {"scanner", acq::to_json(backend.model())}, {"meshing", meshing}}
-          .dump();
+  pc.parameters_json = nlohmann::json{
+      {"kind", "scan"},
+      {"scanner", acq::to_json(backend.model())},
+      {"meshing", meshing}}.dump();
   return std::make_unique<acq::Pipeline>(
       backend, std::make_unique<acq::JournalRecorder>(journal, backend.model()),
       acq::make_mesher(meshing), pc, events.callback());
@@ -128,9 +128,10 @@ std::unique_ptr<acq::Pipeline> make_pipeline(acq::ScanBackend& backend,
 
 }  // namespace
 
-TEST_CASE("scan --sim through the emulators and the real drivers: a mesh on the part, replayed "
-          "byte for byte",
-          "[acq][emulators]") {
+TEST_CASE(
+    "scan --sim through the emulators and the real drivers: a mesh on the part, replayed "
+    "byte for byte",
+    "[acq][emulators]") {
   test::TempDir dir;
   const std::string journal = (dir / "scan.mcap").string();
   const auto live = test::run_program(
@@ -166,9 +167,10 @@ TEST_CASE("scan --sim through the emulators and the real drivers: a mesh on the 
   CHECK(test::slurp(dir / "replay.ply") == test::slurp(dir / "live.ply"));
 }
 
-TEST_CASE("DevicesBackend over the emulators: a pause halts the stage (feed hold), resume runs the "
-          "line again",
-          "[acq][emulators]") {
+TEST_CASE(
+    "DevicesBackend over the emulators: a pause halts the stage (feed hold), resume runs the "
+    "line again",
+    "[acq][emulators]") {
   test::TempDir dir;
   const recon::Mesh part = sim::make_part("sphere");
   sim::EmulatedScanBackend backend(part, sphere_scan(2));
@@ -205,9 +207,10 @@ TEST_CASE("DevicesBackend over the emulators: a pause halts the stage (feed hold
   CHECK(acq::check_journal(dir / "scan.mcap").samples == st.samples_received + st.stage_samples);
 }
 
-TEST_CASE("DevicesBackend over the emulators: the sensor going silent is a lost device, the scan "
-          "pauses and continues when it is back",
-          "[acq][emulators]") {
+TEST_CASE(
+    "DevicesBackend over the emulators: the sensor going silent is a lost device, the scan "
+    "pauses and continues when it is back",
+    "[acq][emulators]") {
   test::TempDir dir;
   const recon::Mesh part = sim::make_part("sphere");
   sim::EmulatedScanBackend backend(part, sphere_scan(2));
@@ -243,7 +246,8 @@ TEST_CASE("DevicesBackend over the emulators: the sensor going silent is a lost 
   CHECK(events.saw_device("ild0", ""));
   CHECK(events.saw_state(acq::PipelineState::kPaused, "ild0"));
   const auto st = pipeline->stats();
-  CHECK(st.samples_recorded == st.samples_received + st.stage_samples);  // nothing acknowledged was lost
+  CHECK(st.samples_recorded ==
+        st.samples_received + st.stage_samples);  // nothing acknowledged was lost
   CHECK(acq::check_journal(dir / "scan.mcap").samples == st.samples_received + st.stage_samples);
   const auto rep = recon::analyze(pipeline->result());
   CHECK(rep.non_manifold_edges == 0);

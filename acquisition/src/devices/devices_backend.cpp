@@ -88,9 +88,9 @@ std::vector<DeviceStatus> DevicesBackend::devices() const {
     sensor_reason = sensor_reason_;
     stage_reason = stage_reason_;
   }
-  DeviceStatus s{sensor_->name(), "sensor", options_.sensor_driver, options_.sensor_port,
+  DeviceStatus s{sensor_->name(),  "sensor",      options_.sensor_driver, options_.sensor_port,
                  sensor_->state(), sensor_reason, sensor_->stats()};
-  DeviceStatus t{stage_->name(), "stage", options_.stage_driver, options_.stage_port,
+  DeviceStatus t{stage_->name(),  "stage",      options_.stage_driver, options_.stage_port,
                  stage_->state(), stage_reason, stage_->stats()};
   return {s, t};
 }

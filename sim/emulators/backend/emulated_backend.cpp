@@ -43,9 +43,8 @@ EmulatedScanBackend::EmulatedScanBackend(recon::Mesh part, const ScanSettings& s
   dopt.sensor_port = scanner_->sensor_port();
   dopt.stage_driver = stage.driver;
   dopt.stage_port = stage.port;
-  devices_ = std::make_unique<acq::DevicesBackend>(std::move(sensor),
-                                                   drivers::make_motion_stage(stage), model,
-                                                   scanner_->program(), dopt);
+  devices_ = std::make_unique<acq::DevicesBackend>(
+      std::move(sensor), drivers::make_motion_stage(stage), model, scanner_->program(), dopt);
 }
 
 EmulatedScanBackend::~EmulatedScanBackend() { stop(); }

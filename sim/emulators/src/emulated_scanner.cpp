@@ -90,8 +90,7 @@ void EmulatedScanner::stop() noexcept {
 
 drivers::SensorSample EmulatedScanner::measure(drivers::Timestamp t) {
   const StagePose pose = stage_->motion().pose(t);
-  const RayHit hit =
-      tracer_->trace_at(simulator_->optics(), simulator_->calibration(), pose, 0);
+  const RayHit hit = tracer_->trace_at(simulator_->optics(), simulator_->calibration(), pose, 0);
   drivers::SensorSample s;
   s.t_host = t;
   s.value_mm = std::numeric_limits<double>::quiet_NaN();

@@ -46,7 +46,7 @@ class EmulatedScanner {
   EmulatedScanner(const EmulatedScanner&) = delete;
   EmulatedScanner& operator=(const EmulatedScanner&) = delete;
 
-  void start();         ///< opens the ptys and starts both emulators
+  void start();  ///< opens the ptys and starts both emulators
   void stop() noexcept;
 
   const std::string& sensor_port() const { return sensor_->port(); }
