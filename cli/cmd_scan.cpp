@@ -11,6 +11,7 @@
 #include "scanmesh/acquisition/journal_backend.hpp"
 #include "scanmesh/acquisition/meshers.hpp"
 #include "scanmesh/acquisition/scanner_json.hpp"
+#include "scanmesh/sim/emulators/emulated_backend.hpp"
 #include "scanmesh/sim/scanner_backend.hpp"
 #include "sim_options.hpp"
 
@@ -26,17 +27,35 @@ struct ScanArgs {
   std::string cube = "auto";
   std::string mesher = "incremental";
   double pace = 0;
+  std::string transport = "auto";
+  bool in_process = false;
   ScanOutput out;
   bool progress = false;
 };
 
 acq::WallTime wall_now() { return std::chrono::system_clock::now(); }
 
+/// "emulators" or "in-process": --in-process wins; "auto" is the emulators for a point sensor
+/// (the ILD1420 emulator) and the in-process simulation for the others (no emulator for them).
+std::string transport_of(const ScanArgs& args) {
+  if (args.in_process) return "in-process";
+  if (args.transport != "auto") return args.transport;
+  return args.scan.sensor == "point" ? "emulators" : "in-process";
+}
+
 int run_scan(const ScanArgs& args) {
   recon::Mesh part = load_scan_target(args.sim);
-  sim::SimulatedScannerOptions so;
-  so.speed = args.pace;
-  sim::SimulatedScanner backend(std::move(part), args.scan.to_config(), so);
+  const std::string transport = transport_of(args);
+  std::unique_ptr<acq::ScanBackend> backend_ptr;
+  if (transport == "emulators") {
+    backend_ptr = std::make_unique<sim::EmulatedScanBackend>(std::move(part), args.scan);
+  } else {
+    sim::SimulatedScannerOptions so;
+    so.speed = args.pace;
+    backend_ptr =
+        std::make_unique<sim::SimulatedScanner>(std::move(part), args.scan.to_config(), so);
+  }
+  acq::ScanBackend& backend = *backend_ptr;
   const nlohmann::json meshing{{"mesher", args.mesher}, {"cube", args.cube}};
   auto mesher = acq::make_mesher(meshing);  // checks --cube before anything is written
   acq::PipelineConfig pc;
@@ -55,7 +74,8 @@ int run_scan(const ScanArgs& args) {
     acq::NewScan ns;
     ns.name = args.name.empty() ? args.sim : args.name;
     ns.journal = std::filesystem::absolute(args.journal);
-    ns.devices = nlohmann::json{{"backend", "sim"}, {"source", args.sim}, {"sensors", model["sensors"]},
+    ns.devices = nlohmann::json{{"backend", "sim"},        {"transport", transport},
+                                {"source", args.sim},      {"sensors", model["sensors"]},
                                 {"stage", model["stage"]}};
     nlohmann::json calibration = nlohmann::json::array();
     for (const auto& s : model["sensors"]) calibration.push_back(s["calibration"]);
@@ -72,6 +92,7 @@ int run_scan(const ScanArgs& args) {
                        {"sensor", args.scan.sensor},
                        {"path", args.scan.path},
                        {"mesher", args.mesher},
+                       {"transport", transport},
                        {"journal", args.journal}};
   if (catalog) extra["scan_id"] = scan_id;
   int status = kExitOk;
@@ -103,7 +124,9 @@ void add_scan_command(CLI::App& app, Runner& run) {
   CLI::App* cmd = app.add_subcommand(
       "scan", "Run a whole simulated scan through the acquisition pipeline into a mesh");
   cmd->footer(
-      "The simulated scanner delivers timestamped sensor and stage samples; the journal records "
+      "The simulated scanner drives the GRBL and ILD1420 protocol emulators on ptys and the real "
+      "drivers read them (a point sensor; --in-process, and any line or probe scan, simulate in "
+      "process instead); the journal records "
       "every one of them (MCAP), the accumulator joins them (pose at each sample's instant, the "
       "sensor's calibration), and the incremental core meshes the regions the scan has left "
       "while it runs. `scanmesh replay JOURNAL` meshes the recording again.");
@@ -124,9 +147,17 @@ void add_scan_command(CLI::App& app, Runner& run) {
       ->capture_default_str()
       ->check(CLI::IsMember({"incremental", "batch"}));
   cmd->add_option("--pace", args->pace,
-                  "playback speed relative to the scan (1: live), 0: as fast as possible")
+                  "in-process only: playback speed relative to the scan (1: live), 0: as fast as "
+                  "possible (the emulators always run live)")
       ->capture_default_str()
       ->check(kNonNegative);
+  cmd->add_option("--transport", args->transport,
+                  "'emulators': the GRBL and ILD1420 protocol emulators on ptys, read by the real "
+                  "drivers (point sensor only); 'in-process': the simulator delivers its samples "
+                  "directly (deterministic); 'auto': emulators for a point sensor, else in-process")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "emulators", "in-process"}));
+  cmd->add_flag("--in-process", args->in_process, "same as --transport in-process");
   add_mesh_output_option(*cmd, args->out.output);
   cmd->add_option("--preview", args->out.preview, "also write a shaded picture of the mesh (.png)")
       ->check(png_output());

@@ -2,11 +2,12 @@
 # SPDX-License-Identifier: MIT
 # The whole product in one command: installs what is missing, builds scanmeshd and scanctl
 # (Release, ./build), starts scanmeshd in the foreground on a temporary socket with the simulated
-# scanner (config/scanmesh-sim.toml: a laser line profiler on a stage with a rotary table; the
-# demo asks for four views of the built-in `container` part, about 25 s at live pace) through
-# the acquisition pipeline (MCAP journal, incremental mesher, SQLite catalog), runs a scan to
-# completion with scanctl (progress shown), exports the mesh and a preview picture into ./out/,
-# and stops the daemon.
+# scanner (config/scanmesh-sim.toml: a Micro-Epsilon ILD1420 point sensor at 10 kHz on a GRBL
+# stage, both protocol emulators on ptys read by the real drivers, scanning the built-in
+# `container` part in serpentine from above, about 25 s of real motion) through the acquisition
+# pipeline (MCAP journal, incremental mesher, SQLite catalog), runs a scan to completion with
+# scanctl (progress shown), exports the mesh and a preview picture into ./out/, and stops the
+# daemon.
 #
 # Usage: scripts/scan-demo.sh [--mesh FILE]
 #   --mesh FILE  scan your own part (.stl .ply .obj) instead of the built-in one.
@@ -44,9 +45,10 @@ ctl() { build/daemon/scanctl --socket "$tmp/control.sock" "$@"; }
 for _ in $(seq 100); do ctl version >/dev/null 2>&1 && break; sleep 0.1; done
 ctl version
 
-# Four views (the table turned a quarter between them) close far more of the part than the
-# configuration's default pass over the top (which the end-to-end tests use: it is quicker).
-params=(--param path=views --param speed_mm_s=40)
+# The configuration's pass over the top, through the emulators and the real drivers. (The
+# in-process simulation, `--param transport=in-process`, can also take a line profiler and four
+# views: `--param sensor=line --param path=views --param speed_mm_s=40`.)
+params=()
 [ -n "$mesh" ] && params+=(--param "mesh=$mesh")
 ctl scan start --name demo "${params[@]}" --wait
 ctl mesh export --path "$out/scan.stl"

@@ -200,6 +200,10 @@ void read_sim(const toml::table* t, const std::string& source, const std::filesy
   r.number("playback", s.playback, 0, 10000);
   r.number("sensor_loss_at_s", s.sensor_loss_at_s, 0, 86400);
   r.number("sensor_loss_s", s.sensor_loss_s, 1e-3, 60);
+  r.choice("transport", s.transport, {"in-process", "emulators"});
+  if (s.transport == "emulators" && s.sensor != "point")
+    r.problem("transport", "the emulators are a point sensor (ILD1420) on a GRBL stage: "
+                           "sensor must be \"point\", got '" + s.sensor + "'");
   r.check_unknown();
 }
 
@@ -351,7 +355,8 @@ std::vector<std::string> restart_needed(const DaemonConfig& a, const DaemonConfi
       s.spacing_mm != t.spacing_mm || s.line_spacing_mm != t.line_spacing_mm ||
       s.speed_mm_s != t.speed_mm_s || s.noise_mm != t.noise_mm || s.seed != t.seed ||
       s.views != t.views || s.profile_points != t.profile_points || s.playback != t.playback ||
-      s.sensor_loss_at_s != t.sensor_loss_at_s || s.sensor_loss_s != t.sensor_loss_s)
+      s.sensor_loss_at_s != t.sensor_loss_at_s || s.sensor_loss_s != t.sensor_loss_s ||
+      s.transport != t.transport)
     out.push_back("sim");
   if (a.replay.journal != b.replay.journal || a.replay.playback != b.replay.playback)
     out.push_back("replay");

@@ -14,6 +14,7 @@
 #include "scanmesh/meshio/meshio.hpp"
 #include "scanmesh/sim/parts.hpp"
 #include "scanmesh/sim/scan_settings.hpp"
+#include "scanmesh/sim/emulators/emulated_backend.hpp"
 #include "scanmesh/sim/scanner_backend.hpp"
 
 namespace scanmesh::daemon {
@@ -73,10 +74,15 @@ ScanSource make_sim(const SimBackendConfig& config, const BackendRequest& reques
       s.profile_points = static_cast<std::int64_t>(params::number(key, v, 1, 65536));
     } else if (key == "playback") {
       s.playback = params::number(key, v, 0, 10000);
+    } else if (key == "transport") {
+      s.transport = params::string(key, v);
+      if (s.transport != "in-process" && s.transport != "emulators")
+        params::bad(key, "must be in-process or emulators");
     } else {
       params::bad(key,
                   "unknown parameter (the sim backend takes part, mesh, sensor, path, spacing_mm, "
-                  "line_spacing_mm, speed_mm_s, noise_mm, seed, views, profile_points, playback; "
+                  "line_spacing_mm, speed_mm_s, noise_mm, seed, views, profile_points, playback, "
+                  "transport; "
                   "every backend cube_mm and mesher)");
     }
   }
@@ -105,6 +111,20 @@ ScanSource make_sim(const SimBackendConfig& config, const BackendRequest& reques
   } else {
     part = sim::make_part(s.part);
     out.description = "part:" + s.part;
+  }
+  if (s.transport == "emulators") {
+    if (s.sensor != "point")
+      params::bad("sensor", "the emulators are a point sensor (ILD1420): sensor must be point");
+    auto emulated = std::make_unique<sim::EmulatedScanBackend>(std::move(part), settings);
+    // Sensing time at the ILD1420's rate: the progress bar's denominator.
+    double seconds = 0;
+    for (const auto& m : emulated->scanner().planner().plan().trajectory.moves())
+      if (m.sensing) seconds += std::chrono::duration<double>(m.end - m.start).count();
+    out.planned_sensor_samples =
+        static_cast<std::uint64_t>(seconds * emulated->scanner().sensor_rate_hz());
+    out.description += " (emulators)";
+    out.backend = std::move(emulated);
+    return out;
   }
   sim::SimulatedScannerOptions options;
   options.speed = s.playback;

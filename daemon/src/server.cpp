@@ -744,6 +744,7 @@ proto::Object Server::config_object() const {
   sim.set("noise_mm", c.sim.noise_mm).set("seed", c.sim.seed).set("views", c.sim.views);
   sim.set("profile_points", c.sim.profile_points).set("playback", c.sim.playback);
   sim.set("sensor_loss_at_s", c.sim.sensor_loss_at_s).set("sensor_loss_s", c.sim.sensor_loss_s);
+  sim.set("transport", c.sim.transport);
   proto::Object replay;
   replay.set("journal", c.replay.journal.string()).set("playback", c.replay.playback);
   std::vector<proto::Object> devices;

@@ -116,16 +116,65 @@ std::int64_t period_ns(double rate_hz) {
 
 }  // namespace
 
-Simulator::Simulator(const Scene& scene, SimConfig config)
-    : scene_(&scene),
-      config_((config.validate(), std::move(config))),
-      optics_(config_.sensor),
-      plan_(plan_scan(config_.path, config_.sensor, scene.lo(), scene.hi())) {
+RayTracer::RayTracer(const Scene& scene, const SensorConfig& sensor)
+    : scene_(&scene), standoff_mm_(sensor.standoff_mm), range_mm_(sensor.range_mm) {
   // Shadow rays start this far off the lit surface (far above rounding, far below any feature).
   const Vec3 lo = scene.lo(), hi = scene.hi();
   shadow_offset_mm_ =
       1e-9 * ((hi - lo).norm() + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff()));
-  cos_max_incidence_ = std::cos(config_.sensor.max_incidence_rad);
+  cos_max_incidence_ = std::cos(sensor.max_incidence_rad);
+}
+
+RayHit RayTracer::trace_at(const SensorOptics& optics, const Calibration& calibration,
+                           const StagePose& pose, std::uint32_t index) const {
+  const Eigen::Isometry3d x = part_from_sensor(calibration, pose);
+  const Vec3 emitter = x.translation();
+  RayHit hit;
+  trace(emitter, x * optics.receiver(), x.linear() * optics.ray_dir(index), hit);
+  return hit;
+}
+
+void RayTracer::trace(const Vec3& emitter, const Vec3& receiver, const Vec3& dir,
+                      RayHit& out) const {
+  const Bvh& bvh = scene_->bvh();
+  out.shadow_ray = false;
+  Bvh::Hit hit;
+  // Beyond a full range past the far end nothing returns at all.
+  if (!bvh.intersect(emitter, dir, 0.0, standoff_mm_ + 2 * range_mm_, hit)) {
+    out.cause = SampleCause::kNoHit;
+    return;
+  }
+  out.t = hit.t;
+  out.point = emitter + dir * hit.t;
+  const Vec3& n = bvh.normal(hit.triangle);
+  const double cos_in = n.dot(dir);
+  if (std::abs(cos_in) < cos_max_incidence_) {
+    out.cause = SampleCause::kGrazing;
+    return;
+  }
+  if (hit.t < standoff_mm_ || hit.t > standoff_mm_ + range_mm_) {
+    out.cause = SampleCause::kOutOfRange;
+    return;
+  }
+  // Triangulation: the receiver must see the lit spot, from the lit side of the surface.
+  const Vec3 facing = cos_in < 0 ? n : Vec3(-n);
+  const Vec3 to_r = receiver - out.point;
+  const double dist = to_r.norm();
+  out.shadow_ray = facing.dot(to_r) > 0;
+  if (!out.shadow_ray ||
+      bvh.occluded(out.point + facing * shadow_offset_mm_, to_r / dist, 0.0, dist)) {
+    out.cause = SampleCause::kShadowed;
+    return;
+  }
+  out.cause = SampleCause::kOk;
+}
+
+Simulator::Simulator(const Scene& scene, SimConfig config)
+    : scene_(&scene),
+      config_((config.validate(), std::move(config))),
+      optics_(config_.sensor),
+      plan_(plan_scan(config_.path, config_.sensor, scene.lo(), scene.hi())),
+      tracer_(scene, optics_.config()) {
   if (config_.sensor.kind != SensorKind::kProbe) return;
   // Touch probe: approach each point until contact, latch, back off, go to the next.
   const Bvh& bvh = scene_->bvh();
@@ -170,49 +219,7 @@ struct Simulator::Tick {
   Vec3 receiver = Vec3::Zero();
 };
 
-/// The geometric outcome of one ray (before any random imperfection).
-struct Simulator::RayResult {
-  SampleCause cause = SampleCause::kNoHit;  ///< kOk: a valid return
-  bool shadow_ray = false;                  ///< a shadow ray was cast (statistics)
-  double t = 0;                             ///< distance along the ray
-  Vec3 point{};                             ///< lit surface point (if any)
-};
 
-void Simulator::trace(const Tick& tick, std::uint32_t index, RayResult& out) const {
-  const Bvh& bvh = scene_->bvh();
-  const SensorConfig& sc = optics_.config();
-  const Vec3 dir = tick.rot * optics_.ray_dir(index);
-  out.shadow_ray = false;
-  Bvh::Hit hit;
-  // Beyond a full range past the far end nothing returns at all.
-  if (!bvh.intersect(tick.emitter, dir, 0.0, sc.standoff_mm + 2 * sc.range_mm, hit)) {
-    out.cause = SampleCause::kNoHit;
-    return;
-  }
-  out.t = hit.t;
-  out.point = tick.emitter + dir * hit.t;
-  const Vec3& n = bvh.normal(hit.triangle);
-  const double cos_in = n.dot(dir);
-  if (std::abs(cos_in) < cos_max_incidence_) {
-    out.cause = SampleCause::kGrazing;
-    return;
-  }
-  if (hit.t < sc.standoff_mm || hit.t > sc.standoff_mm + sc.range_mm) {
-    out.cause = SampleCause::kOutOfRange;
-    return;
-  }
-  // Triangulation: the receiver must see the lit spot, from the lit side of the surface.
-  const Vec3 facing = cos_in < 0 ? n : Vec3(-n);
-  const Vec3 to_r = tick.receiver - out.point;
-  const double dist = to_r.norm();
-  out.shadow_ray = facing.dot(to_r) > 0;
-  if (!out.shadow_ray ||
-      bvh.occluded(out.point + facing * shadow_offset_mm_, to_r / dist, 0.0, dist)) {
-    out.cause = SampleCause::kShadowed;
-    return;
-  }
-  out.cause = SampleCause::kOk;
-}
 
 namespace {
 
@@ -290,7 +297,7 @@ constexpr std::size_t kChunkRays = 512;
 /// then traced (poses, transforms, rays) in chunks by every thread.
 struct Simulator::Batch {
   std::vector<Tick> ticks;
-  std::vector<RayResult> results;
+  std::vector<RayHit> results;
   std::size_t chunk_ticks = 1;
   std::atomic<std::size_t> next_chunk{0};
 
@@ -332,7 +339,8 @@ void Simulator::trace_chunks(Batch& batch) const {
                               cal.mount.translation() - cal.table_center_mm) +
                    cal.table_center_mm;
       tk.receiver = tk.emitter + rot * optics_.receiver();
-      for (std::uint32_t i = 0; i < rays; ++i) trace(tk, i, batch.results[k * rays + i]);
+      for (std::uint32_t i = 0; i < rays; ++i)
+        tracer_.trace(tk.emitter, tk.receiver, tk.rot * optics_.ray_dir(i), batch.results[k * rays + i]);
     }
   }
 }
@@ -489,7 +497,7 @@ SimStats Simulator::run(SampleSink& out, TruthSink* truth_sink) const {
     }
     // Sensor measurement.
     const Tick& tick = cur->ticks[tick_pos];
-    const RayResult* res = cur->results.data() + tick_pos * rays;
+    const RayHit* res = cur->results.data() + tick_pos * rays;
     ++tick_pos;
     const std::uint64_t seq = sensor_seq++;
     // Every stream draws for every measurement, lost or not, so the streams stay aligned.
@@ -503,7 +511,7 @@ SimStats Simulator::run(SampleSink& out, TruthSink* truth_sink) const {
       const double u_drop = imp.dropout_probability > 0 ? dropout_rng.uniform() : 1.0;
       const double u_spike = imp.spike_probability > 0 ? spike_rng.uniform() : 1.0;
       if (lost) continue;
-      const RayResult& r = res[i];
+      const RayHit& r = res[i];
       stats.rays += r.shadow_ray ? 1 : 0;
       SensorSample& s = samples[i];
       SampleTruth& tr = truths[i];

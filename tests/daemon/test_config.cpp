@@ -36,7 +36,8 @@ TEST_CASE("every daemon configuration in config/ loads", "[daemon][config]") {
   const DaemonConfig sim = load_config(SCANMESH_SOURCE_DIR "/config/scanmesh-sim.toml");
   CHECK(sim.backend == "sim");
   CHECK(sim.sim.part == "container");
-  CHECK(sim.sim.sensor == "line");
+  CHECK(sim.sim.sensor == "point");
+  CHECK(sim.sim.transport == "emulators");
   CHECK(sim.socket_path == "/run/scanmesh/control.sock");
   CHECK(sim.export_dirs == std::vector<std::filesystem::path>{"/var/lib/scanmesh/exports"});
   CHECK(std::get<std::string>(sim.scan_defaults.at("mesher")) == "incremental");

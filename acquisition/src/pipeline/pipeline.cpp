@@ -252,6 +252,9 @@ void Pipeline::ingest_loop() {
         recorder_error(e.what());
       }
     }
+    // The counts first: once ingest_done_ is seen, the meshing thread may end the scan and
+    // wait() return, and the final counts must already be there.
+    publish_ingest_stats();
     {
       std::lock_guard lock(mesh_mutex_);
       to_mesh_.insert(to_mesh_.end(), points_.begin(), points_.end());
@@ -259,7 +262,6 @@ void Pipeline::ingest_loop() {
     }
     points_.clear();
     mesh_cv_.notify_one();
-    publish_ingest_stats();
     if (finishing) break;
   }
 }

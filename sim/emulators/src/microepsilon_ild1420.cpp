@@ -79,8 +79,13 @@ std::string MicroEpsilonIld1420Emulator::answer(const std::string& command) {
   return "E100 Unknown command\r\n->";
 }
 
-std::string MicroEpsilonIld1420Emulator::block() {
-  const drivers::SensorSample s = next_value();
+std::string MicroEpsilonIld1420Emulator::block(std::optional<drivers::Timestamp> measured) {
+  const drivers::SensorSample s =
+      measured ? next_value_at(options_.timed_values, *measured) : next_value();
+  if (measured) {  // the timestamp words carry the instant of this measurement
+    device_ns_ = std::max<std::int64_t>(0, (*measured - *clock_origin_).count());
+    ticks_10us_ = static_cast<std::uint64_t>(device_ns_ / 10'000);
+  }
   const bool corrupt = faults().bad_checksum;
   std::uint32_t distance = 0;
   if (s.device_code >= 262075 && s.device_code <= 262082) {
@@ -129,14 +134,32 @@ std::string MicroEpsilonIld1420Emulator::block() {
     first = false;
   }
   ++counter_;
-  ticks_10us_ += 100;  // 1 ms per tick at one block per tick
+  // The device clock: one measuring period per block (1 ms / blocks_per_tick), or the instant
+  // the measurement was taken at.
+  if (!measured) {
+    device_ns_ += 1'000'000 / std::max(1, options_.blocks_per_tick);
+    ticks_10us_ = static_cast<std::uint64_t>(device_ns_ / 10'000);
+  }
   return out;
 }
 
 std::string MicroEpsilonIld1420Emulator::on_tick() {
   if (!streaming_) return {};
   std::string out;
-  for (int i = 0; i < options_.blocks_per_tick; ++i) out += block();
+  const int n = std::max(1, options_.blocks_per_tick);
+  if (!options_.timed_values) {
+    for (int i = 0; i < n; ++i) out += block(std::nullopt);
+    return out;
+  }
+  const drivers::Timestamp now = drivers::monotonic_now();
+  const std::chrono::nanoseconds period(1'000'000 / n);
+  if (!clock_origin_) clock_origin_ = now - std::chrono::milliseconds(1);
+  for (int i = 0; i < n; ++i) {
+    drivers::Timestamp t = now - period * (n - 1 - i);
+    if (last_measured_ && t < *last_measured_ + period) t = std::min(now, *last_measured_ + period);
+    last_measured_ = t;
+    out += block(t);
+  }
   return out;
 }
 

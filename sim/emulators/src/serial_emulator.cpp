@@ -180,6 +180,12 @@ drivers::SensorSample SerialEmulator::next_value() {
   return values_();
 }
 
+drivers::SensorSample SerialEmulator::next_value_at(const TimedValueSource& timed,
+                                                    drivers::Timestamp measured) {
+  measurements_.fetch_add(1);
+  return timed(measured);
+}
+
 void SerialEmulator::send(int fd, const std::string& bytes, const SerialFaults& faults,
                           std::stop_token& stop) {
   if (bytes.empty() || faults.silent) return;

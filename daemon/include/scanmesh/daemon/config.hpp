@@ -38,6 +38,11 @@ struct SimBackendConfig {
   /// [0, 86400]) for `sensor_loss_s` (s, (0, 60], default 0.3), then comes back.
   double sensor_loss_at_s = 0;
   double sensor_loss_s = 0.3;
+  /// "in-process" (default): the simulator delivers its samples straight into the pipeline
+  /// (deterministic). "emulators": the simulated scanner drives the GRBL and ILD1420 protocol
+  /// emulators on ptys and the real drivers read them (a point sensor only; live pace, so
+  /// `playback` and the sensor_loss fault do not apply).
+  std::string transport = "in-process";
 };
 
 /// [replay]: a recorded scan journal played back as if live (backend = "replay").

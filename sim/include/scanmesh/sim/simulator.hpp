@@ -84,6 +84,34 @@ class Scene {
   Bvh bvh_;
 };
 
+/// The geometric outcome of one sensor ray (before any random imperfection).
+struct RayHit {
+  SampleCause cause = SampleCause::kNoHit;  ///< kOk: a valid return
+  bool shadow_ray = false;                  ///< a shadow ray was cast (statistics)
+  double t = 0;                             ///< distance along the ray from the emitter, mm
+  Vec3 point{};                             ///< lit surface point, part frame (if any)
+};
+
+/// Casts one triangulation sensor's rays at a scene: the hit, the incidence limit, the measuring
+/// range and the receiver's line of sight (shadowing). Shared by the Simulator and the device
+/// emulators, so both see the same surface the same way. Immutable; any thread.
+class RayTracer {
+ public:
+  RayTracer(const Scene& scene, const SensorConfig& sensor);  ///< the scene must outlive it
+  /// `emitter`, `receiver` and the unit `dir` in the part frame.
+  void trace(const Vec3& emitter, const Vec3& receiver, const Vec3& dir, RayHit& out) const;
+  /// Ray `index` of `optics` mounted by `calibration` at stage pose `pose`.
+  RayHit trace_at(const SensorOptics& optics, const Calibration& calibration,
+                  const StagePose& pose, std::uint32_t index) const;
+
+ private:
+  const Scene* scene_;
+  double standoff_mm_ = 0;
+  double range_mm_ = 0;
+  double shadow_offset_mm_ = 0;
+  double cos_max_incidence_ = 0;
+};
+
 struct SimStats {
   std::uint64_t measurements = 0;  ///< delivered sensor measurements (profiles) and triggers
   std::uint64_t samples = 0;       ///< delivered sensor samples (profile points)
@@ -116,9 +144,7 @@ class Simulator {
 
  private:
   struct Tick;
-  struct RayResult;
   struct Batch;
-  void trace(const Tick& tick, std::uint32_t index, RayResult& out) const;
   void trace_chunks(Batch& batch) const;
 
   const Scene* scene_;
@@ -130,8 +156,7 @@ class Simulator {
     Vec3 contact{};  ///< touched surface point, part frame
   };
   std::vector<Contact> probe_triggers_;  ///< touch probe: contacts in time order
-  double shadow_offset_mm_ = 0;
-  double cos_max_incidence_ = 0;
+  RayTracer tracer_;
 };
 
 /// A whole simulated scan in memory.

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,7 +21,12 @@ struct Ild1420EmulatorOptions {
   /// Words of an output block: 'd' distance, 'c' 18-bit counter, 'l'/'h' timestamp low/high
   /// word (10 µs ticks). Default "d". Must match the driver's BlockLayout.
   std::string layout = "d";
-  int blocks_per_tick = 1;  ///< blocks per 1 ms tick (1 = 1 kHz)
+  int blocks_per_tick = 1;  ///< blocks per 1 ms tick (1 = 1 kHz, 10 = 10 kHz), 1 .. 100
+  /// When set, measurements come from here instead of the plain ValueSource, each at its own
+  /// instant: the blocks of a tick are taken one period (1 ms / blocks_per_tick) apart, the last
+  /// one at the tick (never later than now, never earlier than the previous one plus a period
+  /// unless that is in the future). The timestamp words then carry that instant.
+  TimedValueSource timed_values;
   bool streaming = true;    ///< output on at power-up (OUTPUT RS422)
   std::string name = "ILD1420-10";
   std::string serial = "1234567";
@@ -55,7 +61,7 @@ class MicroEpsilonIld1420Emulator final : public SerialEmulator {
 
  private:
   std::string answer(const std::string& command);
-  std::string block();
+  std::string block(std::optional<drivers::Timestamp> measured);
 
   Ild1420EmulatorOptions options_;
   std::string line_;
@@ -64,6 +70,8 @@ class MicroEpsilonIld1420Emulator final : public SerialEmulator {
   std::vector<std::string> commands_;
   std::uint32_t counter_ = 0;
   std::uint64_t ticks_10us_ = 0;
+  std::int64_t device_ns_ = 0;  // the device clock, ns (free-running, or measurement instants)
+  std::optional<drivers::Timestamp> clock_origin_, last_measured_;
   std::uint64_t values_sent_ = 0;
 };
 

@@ -57,6 +57,10 @@ struct SerialFaults {
 /// Where emulated measurements come from: called once per measurement the device makes.
 using ValueSource = std::function<drivers::SensorSample()>;
 
+/// A value source that is told the instant (host monotonic clock) the measurement is taken at: a
+/// simulated sensor looking at a moving stage measures where the stage is at that instant.
+using TimedValueSource = std::function<drivers::SensorSample(drivers::Timestamp measured)>;
+
 /// Cycles through a scripted list of distances in mm: NaN means no target, +/-inf over range.
 ValueSource scripted_values(std::vector<double> values_mm);
 /// Plays back samples (e.g. from sim::Simulator), then repeats the last one.
@@ -96,6 +100,8 @@ class SerialEmulator {
   virtual std::chrono::microseconds tick_interval() const { return std::chrono::microseconds(0); }
   /// Next measurement from the value source (counts measurements()).
   drivers::SensorSample next_value();
+  /// Next measurement from `timed` at `measured` (counts measurements()).
+  drivers::SensorSample next_value_at(const TimedValueSource& timed, drivers::Timestamp measured);
   /// For CR-terminated ASCII request protocols, from on_input(): appends bytes to `pending` (the
   /// subclass's partial request, emulator thread only) and calls answer(request) for every
   /// complete non-empty request, without its CR; LF is dropped and a request is cut at max_line
