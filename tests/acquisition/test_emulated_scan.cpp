@@ -22,6 +22,7 @@
 #include "scanmesh/sim/parts.hpp"
 #include "scanmesh/sim/scanner_backend.hpp"
 #include "support/process.hpp"
+#include "pipeline_events.hpp"
 
 using namespace scanmesh;
 using namespace std::chrono_literals;
@@ -40,32 +41,7 @@ sim::ScanSettings sphere_scan(double line_spacing_mm = 2) {
   return s;
 }
 
-struct Events {
-  std::mutex mutex;
-  std::vector<acq::PipelineEvent> list;
-  acq::PipelineEventCallback callback() {
-    return [this](const acq::PipelineEvent& e) {
-      std::lock_guard lock(mutex);
-      list.push_back(e);
-    };
-  }
-  bool saw_state(acq::PipelineState s, const std::string& reason_part = "") {
-    std::lock_guard lock(mutex);
-    for (const auto& e : list)
-      if (e.kind == "state" && e.stats.state == s &&
-          e.stats.reason.find(reason_part) != std::string::npos)
-        return true;
-    return false;
-  }
-  bool saw_device(const std::string& device, const std::string& message_part) {
-    std::lock_guard lock(mutex);
-    for (const auto& e : list)
-      if (e.kind == "device" && e.device == device &&
-          e.message.find(message_part) != std::string::npos)
-        return true;
-    return false;
-  }
-};
+using Events = test::PipelineEvents;
 
 /// How far a mesh's vertices lie from the part: the largest distance and the 99th percentile.
 struct Deviation {

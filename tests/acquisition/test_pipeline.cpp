@@ -14,6 +14,7 @@
 #include "scanmesh/recon/deviation.hpp"
 #include "scanmesh/sim/parts.hpp"
 #include "scanmesh/sim/scanner_backend.hpp"
+#include "pipeline_events.hpp"
 
 using namespace scanmesh;
 using namespace std::chrono_literals;
@@ -71,24 +72,7 @@ class MemoryRecorder final : public acq::Recorder {
   std::atomic<std::uint64_t> acked_{0};
 };
 
-struct Events {
-  std::mutex mutex;
-  std::vector<acq::PipelineEvent> list;
-  acq::PipelineEventCallback callback() {
-    return [this](const acq::PipelineEvent& e) {
-      std::lock_guard lock(mutex);
-      list.push_back(e);
-    };
-  }
-  bool saw_state(acq::PipelineState s, const std::string& reason_part = "") {
-    std::lock_guard lock(mutex);
-    for (const auto& e : list)
-      if (e.kind == "state" && e.stats.state == s &&
-          e.stats.reason.find(reason_part) != std::string::npos)
-        return true;
-    return false;
-  }
-};
+using Events = test::PipelineEvents;
 
 std::uint64_t total_sensor_samples(const sim::SimulatedScanner& backend) {
   sim::ScanRecorder r;
